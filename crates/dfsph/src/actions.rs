@@ -1,0 +1,257 @@
+//! What a user can do to a running simulation. The viewer turns keys and mouse input into
+//! these actions and the simulation applies them between steps, so every interaction can be
+//! tested, recorded and replayed without a window.
+
+use glam::Vec2;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::boundary::{BodyId, BoundarySamples};
+use crate::forces::PointerForce;
+use crate::neighbors::Grid;
+use crate::scene::{SolverParams, TimeStepParams, ViscosityParams};
+use crate::simulation::Simulation;
+
+/// One user action. Held actions (`ShakeTank`, `Push`) stay in force until replaced.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "action", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Action {
+    /// Shake the tank: `direction` −1 slides it left, +1 right, 0 lets it spring back.
+    /// Values are clamped to [−1, 1]; motion is bounded (see `simulation::MAX_SHAKE_*`).
+    ShakeTank { direction: f32 },
+    /// Set gravity, m/s² (tilting the tank is rotating gravity).
+    SetGravity { gravity: Vec2 },
+    /// Push fluid away from (`strength > 0`) or pull it towards (`strength < 0`) a point,
+    /// until [`Action::ReleasePointer`]. Strength in m/s², bounded by
+    /// [`crate::forces::MAX_POINTER_ACCELERATION`].
+    Push {
+        at: Vec2,
+        radius: f32,
+        strength: f32,
+    },
+    /// Stop pushing or pulling.
+    ReleasePointer,
+    /// Pour: add fluid on a disc of lattice sites around `at` (radius in m) with a velocity,
+    /// skipping sites that overlap fluid or walls or lie outside the tank, within the scene's
+    /// `max_particles`.
+    Emit {
+        at: Vec2,
+        radius: f32,
+        velocity: Vec2,
+    },
+    /// Add a wall along a polyline (m). Fluid under the new wall is removed.
+    AddWall { polyline: Vec<Vec2> },
+    /// Remove fluid and drawn walls (not the tank) within `radius` of `at`.
+    Erase { at: Vec2, radius: f32 },
+    /// Replace the solver parameters (tolerances, iterations, method, ...).
+    SetSolver { solver: SolverParams },
+    /// Replace the viscosity parameters.
+    SetViscosity { viscosity: ViscosityParams },
+    /// Replace the time-step parameters.
+    SetTimeStep { time_step: TimeStepParams },
+}
+
+/// What an action changed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ActionOutcome {
+    /// Fluid particles added.
+    pub added: usize,
+    /// Fluid particles removed.
+    pub removed: usize,
+    /// Boundary particles added (positive) or removed (negative).
+    pub boundary_change: isize,
+    /// The action was refused (invalid parameters, budget reached, ...), with the reason.
+    pub rejected: Option<&'static str>,
+}
+
+impl Simulation {
+    /// Apply a user action between steps.
+    pub fn apply(&mut self, action: &Action) -> ActionOutcome {
+        let mut out = ActionOutcome::default();
+        match action {
+            Action::ShakeTank { direction } => {
+                if direction.is_finite() {
+                    self.shake_drive = direction.clamp(-1.0, 1.0);
+                } else {
+                    out.rejected = Some("non-finite shake direction");
+                }
+            }
+            Action::SetGravity { gravity } => {
+                if gravity.is_finite() && gravity.length() <= 100.0 {
+                    self.gravity = *gravity;
+                    self.scene.gravity = [gravity.x as f64, gravity.y as f64];
+                } else {
+                    out.rejected = Some("gravity must be finite and at most 100 m/s²");
+                }
+            }
+            Action::Push {
+                at,
+                radius,
+                strength,
+            } => {
+                if at.is_finite() && radius.is_finite() && strength.is_finite() && *radius > 0.0 {
+                    self.pointer = Some(PointerForce {
+                        at: *at,
+                        radius: *radius,
+                        strength: *strength,
+                    });
+                } else {
+                    out.rejected = Some("pointer needs a finite position, radius > 0 and strength");
+                }
+            }
+            Action::ReleasePointer => self.pointer = None,
+            Action::Emit {
+                at,
+                radius,
+                velocity,
+            } => {
+                if at.is_finite() && radius.is_finite() && velocity.is_finite() && *radius >= 0.0 {
+                    out.added = self.emit(*at, radius.min(1.0), *velocity);
+                } else {
+                    out.rejected = Some("emit needs a finite position, radius and velocity");
+                }
+            }
+            Action::AddWall { polyline } => {
+                if polyline.len() < 2 || polyline.iter().any(|p| !p.is_finite()) {
+                    out.rejected = Some("a wall needs at least two finite points");
+                } else if self.bodies.len() >= BodyId::MAX as usize {
+                    out.rejected = Some("too many walls");
+                } else {
+                    let (removed, added) = self.add_wall(polyline);
+                    out.removed = removed;
+                    out.boundary_change = added as isize;
+                }
+            }
+            Action::Erase { at, radius } => {
+                if at.is_finite() && radius.is_finite() && *radius > 0.0 {
+                    let (fluid, walls) = self.erase(*at, *radius);
+                    out.removed = fluid;
+                    out.boundary_change = -(walls as isize);
+                } else {
+                    out.rejected = Some("erase needs a finite position and radius > 0");
+                }
+            }
+            Action::SetSolver { solver } => {
+                let mut scene = self.scene.clone();
+                scene.solver = solver.clone();
+                match scene.validate() {
+                    Ok(()) => self.scene = scene,
+                    Err(_) => out.rejected = Some("invalid solver parameters"),
+                }
+            }
+            Action::SetViscosity { viscosity } => {
+                let mut scene = self.scene.clone();
+                scene.viscosity = viscosity.clone();
+                match scene.validate() {
+                    Ok(()) => self.scene = scene,
+                    Err(_) => out.rejected = Some("invalid viscosity parameters"),
+                }
+            }
+            Action::SetTimeStep { time_step } => {
+                let mut scene = self.scene.clone();
+                scene.time_step = time_step.clone();
+                match scene.validate() {
+                    Ok(()) => self.scene = scene,
+                    Err(_) => out.rejected = Some("invalid time-step parameters"),
+                }
+            }
+        }
+        out
+    }
+
+    /// The shake drive in force, −1 … 1.
+    pub fn shake_direction(&self) -> f32 {
+        self.shake_drive
+    }
+
+    /// The pointer force in force, if any.
+    pub fn pointer(&self) -> Option<PointerForce> {
+        self.pointer
+    }
+
+    fn emit(&mut self, at: Vec2, radius: f32, velocity: Vec2) -> usize {
+        let d = self.spacing;
+        let budget = self.scene.max_particles.saturating_sub(self.fluid.len());
+        if budget == 0 {
+            return 0;
+        }
+        let (lo, hi) = self.tank_interior();
+        let lo = lo + Vec2::splat(0.5 * d);
+        let hi = hi - Vec2::splat(0.5 * d);
+        let reach = (radius / d).ceil() as i32;
+        let mut sites = Vec::new();
+        for j in -reach..=reach {
+            for i in -reach..=reach {
+                let p = at + Vec2::new(i as f32, j as f32) * d;
+                if (p - at).length() <= radius + 1.0e-6
+                    && p.x >= lo.x
+                    && p.x <= hi.x
+                    && p.y >= lo.y
+                    && p.y <= hi.y
+                {
+                    sites.push(p);
+                }
+            }
+        }
+        // Keep sites clear of existing fluid and walls: closer than 0.9 d would start the new
+        // particles badly compressed.
+        let clear = 0.9 * d;
+        let fluid = &self.fluid.position;
+        let walls = &self.boundary.position;
+        sites.retain(|&p| {
+            let near = |q: &Vec2| (*q - p).length_squared() < clear * clear;
+            !fluid.par_iter().any(near) && !walls.par_iter().any(near)
+        });
+        sites.truncate(budget);
+        for &p in &sites {
+            let id = self.next_id;
+            self.next_id += 1;
+            self.fluid.push(p, velocity, id);
+        }
+        sites.len()
+    }
+
+    /// Add a drawn wall; returns (fluid removed, boundary particles added).
+    fn add_wall(&mut self, polyline: &[Vec2]) -> (usize, usize) {
+        let body = self.bodies.len() as BodyId;
+        self.bodies.push(Default::default());
+        let mut samples = BoundarySamples::default();
+        samples.add_polyline(polyline, self.spacing, body);
+        let added = samples.positions.len();
+        // Fluid inside the new wall would be crushed: remove what lies within a spacing of it.
+        let mut grid = Grid::new(self.spacing);
+        grid.build(&samples.positions);
+        let pos = self.fluid.position.clone();
+        let removed = self.fluid.retain(|i| {
+            let mut inside = false;
+            grid.for_each_near(pos[i], |_, _| inside = true);
+            !inside
+        });
+        self.add_boundary_samples(samples);
+        (removed, added)
+    }
+
+    /// Remove fluid and drawn-wall particles near a point; returns (fluid, wall) counts.
+    fn erase(&mut self, at: Vec2, radius: f32) -> (usize, usize) {
+        let r2 = radius * radius;
+        let pos = self.fluid.position.clone();
+        let removed = self.fluid.retain(|i| (pos[i] - at).length_squared() >= r2);
+        let b = &mut self.boundary;
+        let keep: Vec<bool> = (0..b.len())
+            .map(|k| b.body[k] == 0 || (b.position[k] - at).length_squared() >= r2)
+            .collect();
+        let walls = keep.iter().filter(|&&k| !k).count();
+        if walls > 0 {
+            let mut idx = keep.iter();
+            b.position.retain(|_| *idx.next().unwrap());
+            let mut idx = keep.iter();
+            b.velocity.retain(|_| *idx.next().unwrap());
+            let mut idx = keep.iter();
+            b.volume.retain(|_| *idx.next().unwrap());
+            let mut idx = keep.iter();
+            b.body.retain(|_| *idx.next().unwrap());
+            self.boundary_changed = true;
+        }
+        (removed, walls)
+    }
+}

@@ -1,0 +1,417 @@
+//! Neighbour search on a uniform grid with cell size h (the kernel support).
+//!
+//! Points are bucketed by a counting sort on their cell key; the caller reorders its particle
+//! arrays by the returned permutation, so after [`Grid::build`] the points of one cell are
+//! contiguous and neighbouring particles sit close together in memory. Neighbour lists are
+//! stored in one flat array (CSR: `offsets[i]..offsets[i+1]` indexes `indices`), built in
+//! parallel chunks whose buffers are kept between steps so that a step allocates nothing once
+//! the sizes have settled.
+//!
+//! The grid spans the bounding box of the points it was built from, so points anywhere are
+//! found. When that box would need far more cells than there are points (a particle flung
+//! very far away) the keys fall back to a hash of the cell coordinates, which keeps memory
+//! proportional to the point count and results exact (every candidate is distance-checked).
+
+use glam::Vec2;
+use rayon::prelude::*;
+
+/// Particles per parallel work item when building neighbour lists.
+const CHUNK: usize = 512;
+
+/// Flat neighbour lists: the neighbours of `i` are `indices[offsets[i]..offsets[i + 1]]`.
+#[derive(Default, Clone, Debug)]
+pub struct NeighborLists {
+    pub offsets: Vec<u32>,
+    pub indices: Vec<u32>,
+    /// Per-chunk scratch buffers, reused between builds.
+    chunk_buffers: Vec<Vec<u32>>,
+}
+
+impl NeighborLists {
+    /// The neighbours of point `i`.
+    #[inline]
+    pub fn of(&self, i: usize) -> &[u32] {
+        &self.indices[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    }
+
+    /// The range of point `i`'s neighbours in `indices` (and in any per-pair array).
+    #[inline]
+    pub fn range(&self, i: usize) -> std::ops::Range<usize> {
+        self.offsets[i] as usize..self.offsets[i + 1] as usize
+    }
+
+    /// Number of points the lists were built for.
+    pub fn len(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
+
+    /// True when built for no points.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Total number of (ordered) pairs.
+    pub fn pair_count(&self) -> usize {
+        self.indices.len()
+    }
+}
+
+/// A uniform grid over a set of points sorted by cell.
+#[derive(Default, Clone, Debug)]
+pub struct Grid {
+    /// Support radius: neighbours are the points closer than this.
+    radius: f32,
+    /// 1 / cell edge; the edge is a hair larger than `radius` so rounding never puts a
+    /// neighbour two cells away.
+    inv_cell: f32,
+    origin: Vec2,
+    dims: [i64; 2],
+    /// Number of keys; dense grids use `dims[0] * dims[1]`, hashed ones a power of two.
+    key_count: usize,
+    hashed: bool,
+    /// `cell_start[k]..cell_start[k + 1]` are the sorted points with key `k`.
+    cell_start: Vec<u32>,
+    /// Scratch: each point's key.
+    keys: Vec<u32>,
+    /// The permutation of the last build: sorted position `s` holds original point
+    /// `order[s]`.
+    order: Vec<u32>,
+    /// Sorted positions, so queries do not depend on the caller's arrays.
+    sorted: Vec<Vec2>,
+    /// Scratch: the fill position of each key during the counting sort.
+    cursor: Vec<u32>,
+}
+
+impl Grid {
+    /// An empty grid for neighbours closer than `radius`.
+    pub fn new(radius: f32) -> Self {
+        Self {
+            radius,
+            inv_cell: 1.0 / (radius * (1.0 + 1.0e-4)),
+            ..Default::default()
+        }
+    }
+
+    /// The support radius this grid answers for.
+    pub fn radius(&self) -> f32 {
+        self.radius
+    }
+
+    /// Bucket `points` by cell. Returns the permutation (`order[s]` = original index of the
+    /// point now at sorted position `s`); callers reorder their arrays with it so that the
+    /// indices in neighbour lists are sorted positions.
+    pub fn build(&mut self, points: &[Vec2]) -> &[u32] {
+        let n = points.len();
+        let (lo, hi) = bounds(points);
+        self.origin = lo;
+        let extent = hi - lo;
+        let nx = (extent.x * self.inv_cell).floor() as i64 + 1;
+        let ny = (extent.y * self.inv_cell).floor() as i64 + 1;
+        let dense_cells = (nx as f64) * (ny as f64);
+        let limit = (4 * n).max(4096) as f64;
+        if n == 0 || dense_cells <= limit {
+            self.hashed = false;
+            self.dims = [nx.max(1), ny.max(1)];
+            self.key_count = (self.dims[0] * self.dims[1]) as usize;
+        } else {
+            self.hashed = true;
+            self.dims = [nx, ny];
+            self.key_count = (2 * n).next_power_of_two();
+        }
+
+        // Counting sort by key.
+        let mut keys = std::mem::take(&mut self.keys);
+        keys.resize(n, 0);
+        keys.par_iter_mut()
+            .zip(points.par_iter())
+            .for_each(|(k, &p)| *k = self.point_key(p));
+        self.keys = keys;
+        self.cell_start.clear();
+        self.cell_start.resize(self.key_count + 1, 0);
+        for &k in &self.keys {
+            self.cell_start[k as usize + 1] += 1;
+        }
+        for k in 0..self.key_count {
+            self.cell_start[k + 1] += self.cell_start[k];
+        }
+        self.order.resize(n, 0);
+        self.cursor.clear();
+        self.cursor
+            .extend_from_slice(&self.cell_start[..self.key_count]);
+        for (i, &k) in self.keys.iter().enumerate() {
+            let slot = &mut self.cursor[k as usize];
+            self.order[*slot as usize] = i as u32;
+            *slot += 1;
+        }
+        self.sorted.clear();
+        self.sorted
+            .extend(self.order.iter().map(|&i| points[i as usize]));
+        &self.order
+    }
+
+    /// The positions in sorted order.
+    pub fn sorted_points(&self) -> &[Vec2] {
+        &self.sorted
+    }
+
+    /// The permutation of the last build.
+    pub fn order(&self) -> &[u32] {
+        &self.order
+    }
+
+    #[inline]
+    fn cell_of(&self, p: Vec2) -> [i64; 2] {
+        let c = (p - self.origin) * self.inv_cell;
+        // `as` saturates, so points at any distance get a (possibly out-of-grid) cell.
+        [c.x.floor() as i64, c.y.floor() as i64]
+    }
+
+    /// Key of a point the grid was built from (always inside the grid).
+    #[inline]
+    fn point_key(&self, p: Vec2) -> u32 {
+        let [cx, cy] = self.cell_of(p);
+        let clamped = [cx.clamp(0, self.dims[0] - 1), cy.clamp(0, self.dims[1] - 1)];
+        let c = if self.hashed { [cx, cy] } else { clamped };
+        self.key_of_cell(c).unwrap_or(0)
+    }
+
+    #[inline]
+    fn key_of_cell(&self, c: [i64; 2]) -> Option<u32> {
+        if self.hashed {
+            // Large primes (Teschner et al. 2003); wrapping keeps far cells well defined.
+            let h = (c[0].wrapping_mul(73_856_093)) ^ (c[1].wrapping_mul(19_349_663));
+            Some((h as u64 & (self.key_count as u64 - 1)) as u32)
+        } else if c[0] < 0 || c[1] < 0 || c[0] >= self.dims[0] || c[1] >= self.dims[1] {
+            None
+        } else {
+            Some((c[1] * self.dims[0] + c[0]) as u32)
+        }
+    }
+
+    /// Visit every sorted index `j` within the support of `p` (including a point at `p`
+    /// itself). `f` gets `j` and the offset `p - x_j`.
+    #[inline]
+    pub fn for_each_near(&self, p: Vec2, mut f: impl FnMut(u32, Vec2)) {
+        if self.sorted.is_empty() {
+            return;
+        }
+        let c = self.cell_of(p);
+        let r2 = self.radius * self.radius;
+        let mut seen = [u32::MAX; 9];
+        let mut nseen = 0;
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let Some(key) =
+                    self.key_of_cell([c[0].saturating_add(dx), c[1].saturating_add(dy)])
+                else {
+                    continue;
+                };
+                if self.hashed {
+                    // Two of the nine cells may share a hash bucket: scan it once.
+                    if seen[..nseen].contains(&key) {
+                        continue;
+                    }
+                    seen[nseen] = key;
+                    nseen += 1;
+                }
+                let start = self.cell_start[key as usize] as usize;
+                let end = self.cell_start[key as usize + 1] as usize;
+                for (j, &xj) in self.sorted[start..end].iter().enumerate() {
+                    let r = p - xj;
+                    if r.length_squared() < r2 {
+                        f((start + j) as u32, r);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Neighbour lists of `queries` against this grid's points. With `exclude_self`, the
+    /// queries are this grid's own sorted points and a point is not its own neighbour.
+    pub fn neighbor_lists(&self, queries: &[Vec2], exclude_self: bool, out: &mut NeighborLists) {
+        let n = queries.len();
+        let chunks = n.div_ceil(CHUNK);
+        out.offsets.resize(n + 1, 0);
+        if out.chunk_buffers.len() < chunks {
+            out.chunk_buffers.resize_with(chunks, Vec::new);
+        }
+        out.offsets[0] = 0;
+        // Pass 1 (parallel over chunks): each chunk lists its points' neighbours into its own
+        // buffer and writes its points' counts.
+        out.offsets[1..]
+            .par_chunks_mut(CHUNK)
+            .zip(out.chunk_buffers[..chunks].par_iter_mut())
+            .enumerate()
+            .for_each(|(c, (counts, buf))| {
+                buf.clear();
+                let base = c * CHUNK;
+                for (k, count) in counts.iter_mut().enumerate() {
+                    let i = base + k;
+                    let before = buf.len();
+                    self.for_each_near(queries[i], |j, _| {
+                        if !(exclude_self && j as usize == i) {
+                            buf.push(j);
+                        }
+                    });
+                    *count = (buf.len() - before) as u32;
+                }
+            });
+        // Pass 2: prefix sum, then copy the chunk buffers into place in parallel.
+        for i in 0..n {
+            out.offsets[i + 1] += out.offsets[i];
+        }
+        let total = out.offsets[n] as usize;
+        out.indices.resize(total, 0);
+        let mut slices: Vec<&mut [u32]> = Vec::with_capacity(chunks);
+        let mut rest: &mut [u32] = &mut out.indices;
+        for buf in &out.chunk_buffers[..chunks] {
+            let (head, tail) = rest.split_at_mut(buf.len());
+            slices.push(head);
+            rest = tail;
+        }
+        slices
+            .into_par_iter()
+            .zip(out.chunk_buffers[..chunks].par_iter())
+            .for_each(|(dst, src)| dst.copy_from_slice(src));
+    }
+}
+
+/// Bounding box of a point set; (0,0)-(0,0) when empty.
+fn bounds(points: &[Vec2]) -> (Vec2, Vec2) {
+    if points.is_empty() {
+        return (Vec2::ZERO, Vec2::ZERO);
+    }
+    points
+        .par_iter()
+        .fold(
+            || (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        )
+        .reduce(
+            || (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)),
+            |(a, b), (c, d)| (a.min(c), b.max(d)),
+        )
+}
+
+/// Gather `values` into `scratch` by `order` and swap, so `values[s]` becomes the old
+/// `values[order[s]]`.
+pub fn permute<T: Copy + Send + Sync>(values: &mut Vec<T>, order: &[u32], scratch: &mut Vec<T>) {
+    debug_assert_eq!(values.len(), order.len());
+    scratch.clear();
+    scratch.extend(order.iter().map(|&i| values[i as usize]));
+    std::mem::swap(values, scratch);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn brute_force(points: &[Vec2], radius: f32, i: usize) -> Vec<u32> {
+        let mut v: Vec<u32> = (0..points.len())
+            .filter(|&j| j != i && (points[i] - points[j]).length_squared() < radius * radius)
+            .map(|j| j as u32)
+            .collect();
+        v.sort_unstable();
+        v
+    }
+
+    fn check(points: Vec<Vec2>, radius: f32) {
+        let mut grid = Grid::new(radius);
+        let order = grid.build(&points).to_vec();
+        let sorted: Vec<Vec2> = order.iter().map(|&i| points[i as usize]).collect();
+        assert_eq!(grid.sorted_points(), &sorted[..]);
+        let mut lists = NeighborLists::default();
+        grid.neighbor_lists(&sorted, true, &mut lists);
+        assert_eq!(lists.len(), points.len());
+        for i in 0..sorted.len() {
+            let mut got = lists.of(i).to_vec();
+            got.sort_unstable();
+            assert_eq!(
+                got,
+                brute_force(&sorted, radius, i),
+                "point {i} at {:?}",
+                sorted[i]
+            );
+        }
+    }
+
+    #[test]
+    fn points_on_cell_borders() {
+        // A lattice whose spacing is exactly half the radius puts points on every cell edge
+        // and pairs at exactly the radius (which are not neighbours: W(h) = 0).
+        let r = 0.04f32;
+        let mut pts = Vec::new();
+        for i in 0..30 {
+            for j in 0..20 {
+                pts.push(Vec2::new(i as f32 * r * 0.5, j as f32 * r * 0.5));
+            }
+        }
+        check(pts, r);
+    }
+
+    #[test]
+    fn far_away_points_use_the_hashed_grid() {
+        let mut pts: Vec<Vec2> = (0..200)
+            .map(|i| Vec2::new((i % 20) as f32 * 0.01, (i / 20) as f32 * 0.01))
+            .collect();
+        pts.push(Vec2::new(1.0e6, -3.0e5));
+        pts.push(Vec2::new(1.0e6 + 0.01, -3.0e5));
+        pts.push(Vec2::new(-5.0e4, 7.0e4));
+        let mut grid = Grid::new(0.02);
+        grid.build(&pts);
+        assert!(grid.hashed, "a huge bounding box should switch to hashing");
+        check(pts, 0.02);
+    }
+
+    #[test]
+    fn cross_set_queries_match_brute_force() {
+        let fluid: Vec<Vec2> = (0..300)
+            .map(|i| Vec2::new((i * 37 % 101) as f32 * 0.013, (i * 53 % 97) as f32 * 0.011))
+            .collect();
+        let walls: Vec<Vec2> = (0..150)
+            .map(|i| Vec2::new(i as f32 * 0.009 - 0.1, 0.5 + (i % 3) as f32 * 0.01))
+            .collect();
+        let mut grid = Grid::new(0.05);
+        grid.build(&walls);
+        let sorted_walls = grid.sorted_points().to_vec();
+        let mut lists = NeighborLists::default();
+        grid.neighbor_lists(&fluid, false, &mut lists);
+        for (i, &p) in fluid.iter().enumerate() {
+            let mut got = lists.of(i).to_vec();
+            got.sort_unstable();
+            let want: Vec<u32> = (0..sorted_walls.len())
+                .filter(|&j| (p - sorted_walls[j]).length_squared() < 0.05 * 0.05)
+                .map(|j| j as u32)
+                .collect();
+            assert_eq!(got, want);
+        }
+    }
+
+    #[test]
+    fn permute_gathers_by_order() {
+        let mut v = vec![10, 20, 30, 40];
+        let mut scratch = Vec::new();
+        permute(&mut v, &[2, 0, 3, 1], &mut scratch);
+        assert_eq!(v, vec![30, 10, 40, 20]);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        #[test]
+        fn random_configurations_match_brute_force(
+            pts in prop::collection::vec((-2.0f32..2.0, -1.0f32..3.0), 0..400),
+            radius in 0.01f32..0.5,
+            far in prop::collection::vec((-1.0e5f32..1.0e5, -1.0e5f32..1.0e5), 0..3),
+        ) {
+            let mut points: Vec<Vec2> = pts.iter().map(|&(x, y)| Vec2::new(x, y)).collect();
+            // Clusters and duplicates stress the buckets.
+            let n = points.len();
+            for k in 0..n / 10 {
+                points.push(points[k]);
+            }
+            points.extend(far.iter().map(|&(x, y)| Vec2::new(x, y)));
+            check(points, radius);
+        }
+    }
+}

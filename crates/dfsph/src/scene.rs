@@ -1,0 +1,716 @@
+//! Scene description: the tank, the fluid blocks, obstacles and every solver parameter, read
+//! from JSON with serde. Every key has a documented unit and default (`docs/scenes.md`);
+//! unknown keys, wrong types and impossible values are rejected with an error that names the
+//! key. Nothing here allocates particles: see [`crate::Simulation::new`].
+
+use serde::{Deserialize, Serialize};
+
+/// A point or vector in metres (or m/s², for gravity), as `[x, y]` in JSON.
+pub type Point = [f64; 2];
+
+/// A complete scene. `Default` is the built-in dam break.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Scene {
+    /// Short name, shown in the viewer and written to outputs.
+    pub name: String,
+    /// One line describing the scene.
+    pub description: String,
+    /// Particle radius r in metres. Lattice spacing d = 2r, kernel support h = 4r.
+    pub particle_radius: f64,
+    /// Rest density ρ0 in kg/m³.
+    pub rest_density: f64,
+    /// Gravity in m/s².
+    pub gravity: Point,
+    /// The tank: an axis-aligned box whose interior holds the fluid; its walls are boundary
+    /// particles sampled just outside the interior.
+    pub tank: Tank,
+    /// Axis-aligned blocks of fluid, each filled with a square lattice of spacing d.
+    pub fluid: Vec<FluidBlock>,
+    /// Static obstacles inside the tank, sampled as boundary particles.
+    pub obstacles: Vec<Obstacle>,
+    /// Pressure solver and its tolerances.
+    pub solver: SolverParams,
+    /// Adaptive (CFL) time stepping.
+    pub time_step: TimeStepParams,
+    /// Viscosity models.
+    pub viscosity: ViscosityParams,
+    /// Upper bound on the number of fluid particles, the scene's own and those poured in
+    /// later; a scene whose blocks hold more is rejected.
+    pub max_particles: usize,
+}
+
+/// The tank interior `[min, max]` in metres.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Tank {
+    /// Lower-left corner of the interior, metres.
+    pub min: Point,
+    /// Upper-right corner of the interior, metres.
+    pub max: Point,
+}
+
+/// A rectangle of fluid. Particle centres lie at `min + d/2 + (i, j)·d` inside it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FluidBlock {
+    /// Lower-left corner, metres.
+    pub min: Point,
+    /// Upper-right corner, metres.
+    pub max: Point,
+    /// Initial velocity in m/s.
+    #[serde(default)]
+    pub velocity: Point,
+}
+
+/// A static obstacle, sampled with boundary particles two layers thick.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, tag = "type", rename_all = "snake_case")]
+pub enum Obstacle {
+    /// A solid axis-aligned box, metres.
+    Rect { min: Point, max: Point },
+    /// A wall along a polyline through the given points, metres.
+    Polyline { points: Vec<Point> },
+}
+
+/// Which pressure solver runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    /// Divergence-free SPH (Bender & Koschier 2015/2017).
+    Dfsph,
+    /// Weakly compressible SPH with the Tait equation of state (Becker & Teschner 2007).
+    Wcsph,
+}
+
+/// Pressure solver parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SolverParams {
+    /// `dfsph` or `wcsph`.
+    pub method: Method,
+    /// DFSPH density solve: stop when the *average* relative density error is at most this,
+    /// in percent.
+    pub density_tolerance_pct: f64,
+    /// DFSPH divergence solve: stop when the *average* relative density change per step is
+    /// at most this, in percent.
+    pub divergence_tolerance_pct: f64,
+    /// Minimum iterations of each DFSPH solve.
+    pub min_iterations: u32,
+    /// Maximum iterations of each DFSPH solve.
+    pub max_iterations: u32,
+    /// Run the divergence solve (DFSPH only).
+    pub divergence_solve: bool,
+    /// Start both solves from the previous step's stiffness values.
+    pub warm_start: bool,
+    /// WCSPH stiffness B in Pa of `p = B·((ρ/ρ0)^γ − 1)`.
+    pub wcsph_stiffness: f64,
+    /// WCSPH exponent γ.
+    pub wcsph_exponent: f64,
+}
+
+/// CFL time step: `Δt = cfl · d / v_max`, clamped to `[min, max]` seconds.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TimeStepParams {
+    /// CFL factor λ (dimensionless).
+    pub cfl: f64,
+    /// Smallest time step, seconds.
+    pub min: f64,
+    /// Largest time step, seconds.
+    pub max: f64,
+}
+
+/// Viscosity parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ViscosityParams {
+    /// XSPH velocity smoothing coefficient (dimensionless, 0 = off, typically 0.01–0.1).
+    pub xsph: f64,
+    /// Kinematic viscosity ν of the fluid in m²/s (water: 1e-6), Laplacian form of Morris
+    /// et al. 1997 / Monaghan 2005.
+    pub kinematic: f64,
+    /// Kinematic viscosity in m²/s applied between fluid and walls (wall friction).
+    pub boundary_kinematic: f64,
+}
+
+impl Default for Scene {
+    fn default() -> Self {
+        Self {
+            name: "dam-break".into(),
+            description: "1 m x 2 m water column collapsing in a 4 m x 3 m tank".into(),
+            particle_radius: 0.01,
+            rest_density: 1000.0,
+            gravity: [0.0, -9.81],
+            tank: Tank {
+                min: [0.0, 0.0],
+                max: [4.0, 3.0],
+            },
+            fluid: vec![FluidBlock {
+                min: [0.0, 0.0],
+                max: [1.0, 2.0],
+                velocity: [0.0, 0.0],
+            }],
+            obstacles: Vec::new(),
+            solver: SolverParams::default(),
+            time_step: TimeStepParams::default(),
+            viscosity: ViscosityParams::default(),
+            max_particles: 1_000_000,
+        }
+    }
+}
+
+impl Default for SolverParams {
+    fn default() -> Self {
+        Self {
+            method: Method::Dfsph,
+            density_tolerance_pct: 0.05,
+            divergence_tolerance_pct: 0.1,
+            min_iterations: 2,
+            max_iterations: 100,
+            divergence_solve: true,
+            warm_start: true,
+            wcsph_stiffness: 5.0e5,
+            wcsph_exponent: 7.0,
+        }
+    }
+}
+
+impl Default for TimeStepParams {
+    fn default() -> Self {
+        Self {
+            cfl: 0.4,
+            min: 1.0e-5,
+            max: 5.0e-3,
+        }
+    }
+}
+
+impl Default for ViscosityParams {
+    fn default() -> Self {
+        Self {
+            xsph: 0.01,
+            kinematic: 0.0,
+            boundary_kinematic: 0.0,
+        }
+    }
+}
+
+/// Why a scene was rejected. The message names the offending key (`solver.max_iterations`,
+/// `fluid[1].max`, ...).
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum SceneError {
+    /// The text is not valid JSON or does not match the schema (wrong type, unknown key).
+    #[error("{0}")]
+    Parse(String),
+    /// A value is of the right type but impossible.
+    #[error("`{key}`: {message}")]
+    Invalid { key: String, message: String },
+}
+
+fn invalid(key: impl Into<String>, message: impl Into<String>) -> SceneError {
+    SceneError::Invalid {
+        key: key.into(),
+        message: message.into(),
+    }
+}
+
+impl Scene {
+    /// Parse and validate a scene from JSON text. Keys that are absent take their defaults.
+    pub fn from_json(text: &str) -> Result<Self, SceneError> {
+        if text.trim().is_empty() {
+            return Err(SceneError::Parse(
+                "the scene is empty: expected a JSON object such as {\"particle_radius\": 0.01}"
+                    .into(),
+            ));
+        }
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
+            let path = e.path().to_string();
+            let inner = e.into_inner();
+            if path.is_empty() || path == "." {
+                SceneError::Parse(inner.to_string())
+            } else {
+                SceneError::Parse(format!("`{path}`: {inner}"))
+            }
+        })?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// The resolved scene as pretty JSON: every key present, defaults filled in.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("a scene always serialises")
+    }
+
+    /// Lattice spacing d = 2r, metres.
+    pub fn spacing(&self) -> f64 {
+        2.0 * self.particle_radius
+    }
+
+    /// Kernel support h = 4r, metres.
+    pub fn support(&self) -> f64 {
+        4.0 * self.particle_radius
+    }
+
+    /// Number of lattice sites along one side of a fluid block of this length.
+    pub(crate) fn lattice_count(&self, length: f64) -> usize {
+        // A block that is an integer number of spacings long gets exactly that many
+        // particles; the small epsilon keeps 1.0 / 0.02 from rounding down to 49.
+        ((length / self.spacing()) + 1.0e-6).floor().max(0.0) as usize
+    }
+
+    /// Number of fluid particles the scene's blocks produce.
+    pub fn fluid_particle_count(&self) -> usize {
+        self.fluid
+            .iter()
+            .map(|b| {
+                self.lattice_count(b.max[0] - b.min[0]) * self.lattice_count(b.max[1] - b.min[1])
+            })
+            .sum()
+    }
+
+    /// Check every value for being finite and physically possible. Called by
+    /// [`Scene::from_json`]; call it yourself on scenes built in code.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        let finite = |key: &str, v: f64| -> Result<(), SceneError> {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(invalid(key, format!("must be a finite number, got {v}")))
+            }
+        };
+        let positive = |key: &str, v: f64| -> Result<(), SceneError> {
+            finite(key, v)?;
+            if v > 0.0 {
+                Ok(())
+            } else {
+                Err(invalid(key, format!("must be greater than 0, got {v}")))
+            }
+        };
+        let point = |key: &str, p: Point| -> Result<(), SceneError> {
+            finite(&format!("{key}[0]"), p[0])?;
+            finite(&format!("{key}[1]"), p[1])
+        };
+
+        positive("particle_radius", self.particle_radius)?;
+        positive("rest_density", self.rest_density)?;
+        point("gravity", self.gravity)?;
+        point("tank.min", self.tank.min)?;
+        point("tank.max", self.tank.max)?;
+        for axis in 0..2 {
+            if self.tank.max[axis] <= self.tank.min[axis] {
+                return Err(invalid(
+                    format!("tank.max[{axis}]"),
+                    format!(
+                        "must be greater than tank.min[{axis}] ({} <= {})",
+                        self.tank.max[axis], self.tank.min[axis]
+                    ),
+                ));
+            }
+        }
+        let d = self.spacing();
+        let tank_size = [
+            self.tank.max[0] - self.tank.min[0],
+            self.tank.max[1] - self.tank.min[1],
+        ];
+        if tank_size[0] < 2.0 * d || tank_size[1] < 2.0 * d {
+            return Err(invalid(
+                "particle_radius",
+                format!(
+                    "{} m is too large for a tank of {} m x {} m (it must fit at least two particles across)",
+                    self.particle_radius, tank_size[0], tank_size[1]
+                ),
+            ));
+        }
+        // Grid and memory safety: a tank a million particle spacings across is a typo.
+        let cells = (tank_size[0] / d) * (tank_size[1] / d);
+        if cells > 1.0e9 {
+            return Err(invalid(
+                "particle_radius",
+                format!(
+                    "{} m is too small for a tank of {} m x {} m ({cells:.2e} lattice sites)",
+                    self.particle_radius, tank_size[0], tank_size[1]
+                ),
+            ));
+        }
+
+        if self.fluid.is_empty() {
+            return Err(invalid("fluid", "at least one fluid block is needed"));
+        }
+        let eps = 1.0e-9 * tank_size[0].max(tank_size[1]);
+        for (i, b) in self.fluid.iter().enumerate() {
+            let key = format!("fluid[{i}]");
+            point(&format!("{key}.min"), b.min)?;
+            point(&format!("{key}.max"), b.max)?;
+            point(&format!("{key}.velocity"), b.velocity)?;
+            for axis in 0..2 {
+                if b.max[axis] <= b.min[axis] {
+                    return Err(invalid(
+                        format!("{key}.max[{axis}]"),
+                        format!(
+                            "must be greater than {key}.min[{axis}] ({} <= {})",
+                            b.max[axis], b.min[axis]
+                        ),
+                    ));
+                }
+                if b.min[axis] < self.tank.min[axis] - eps {
+                    return Err(invalid(
+                        format!("{key}.min[{axis}]"),
+                        format!(
+                            "{} lies outside the tank (tank.min[{axis}] = {})",
+                            b.min[axis], self.tank.min[axis]
+                        ),
+                    ));
+                }
+                if b.max[axis] > self.tank.max[axis] + eps {
+                    return Err(invalid(
+                        format!("{key}.max[{axis}]"),
+                        format!(
+                            "{} lies outside the tank (tank.max[{axis}] = {})",
+                            b.max[axis], self.tank.max[axis]
+                        ),
+                    ));
+                }
+                if b.max[axis] - b.min[axis] < d * (1.0 - 1.0e-6) {
+                    return Err(invalid(
+                        format!("{key}.max[{axis}]"),
+                        format!(
+                            "the block is {} m wide, less than one particle spacing ({d} m)",
+                            b.max[axis] - b.min[axis]
+                        ),
+                    ));
+                }
+            }
+        }
+        for (i, o) in self.obstacles.iter().enumerate() {
+            let key = format!("obstacles[{i}]");
+            match o {
+                Obstacle::Rect { min, max } => {
+                    point(&format!("{key}.min"), *min)?;
+                    point(&format!("{key}.max"), *max)?;
+                    for axis in 0..2 {
+                        if max[axis] <= min[axis] {
+                            return Err(invalid(
+                                format!("{key}.max[{axis}]"),
+                                format!("must be greater than {key}.min[{axis}]"),
+                            ));
+                        }
+                    }
+                }
+                Obstacle::Polyline { points } => {
+                    if points.len() < 2 {
+                        return Err(invalid(
+                            format!("{key}.points"),
+                            format!("a polyline needs at least 2 points, got {}", points.len()),
+                        ));
+                    }
+                    for (k, p) in points.iter().enumerate() {
+                        point(&format!("{key}.points[{k}]"), *p)?;
+                    }
+                }
+            }
+        }
+
+        let s = &self.solver;
+        positive("solver.density_tolerance_pct", s.density_tolerance_pct)?;
+        positive(
+            "solver.divergence_tolerance_pct",
+            s.divergence_tolerance_pct,
+        )?;
+        if s.max_iterations == 0 {
+            return Err(invalid("solver.max_iterations", "must be at least 1"));
+        }
+        if s.min_iterations > s.max_iterations {
+            return Err(invalid(
+                "solver.min_iterations",
+                format!(
+                    "{} is greater than solver.max_iterations ({})",
+                    s.min_iterations, s.max_iterations
+                ),
+            ));
+        }
+        if s.max_iterations > 10_000 {
+            return Err(invalid(
+                "solver.max_iterations",
+                format!("{} is unreasonably large (at most 10000)", s.max_iterations),
+            ));
+        }
+        positive("solver.wcsph_stiffness", s.wcsph_stiffness)?;
+        positive("solver.wcsph_exponent", s.wcsph_exponent)?;
+
+        let t = &self.time_step;
+        positive("time_step.cfl", t.cfl)?;
+        if t.cfl > 1.0 {
+            return Err(invalid(
+                "time_step.cfl",
+                format!("{} exceeds 1: the CFL condition would be violated", t.cfl),
+            ));
+        }
+        positive("time_step.min", t.min)?;
+        positive("time_step.max", t.max)?;
+        if t.min > t.max {
+            return Err(invalid(
+                "time_step.min",
+                format!("{} is greater than time_step.max ({})", t.min, t.max),
+            ));
+        }
+
+        let v = &self.viscosity;
+        for (key, val) in [
+            ("viscosity.xsph", v.xsph),
+            ("viscosity.kinematic", v.kinematic),
+            ("viscosity.boundary_kinematic", v.boundary_kinematic),
+        ] {
+            finite(key, val)?;
+            if val < 0.0 {
+                return Err(invalid(key, format!("must not be negative, got {val}")));
+            }
+        }
+        if v.xsph > 1.0 {
+            return Err(invalid(
+                "viscosity.xsph",
+                format!(
+                    "{} exceeds 1 (it is a fraction of the neighbour-averaged velocity)",
+                    v.xsph
+                ),
+            ));
+        }
+
+        let n = self.fluid_particle_count();
+        if n > self.max_particles {
+            return Err(invalid(
+                "max_particles",
+                format!(
+                    "the fluid blocks hold {n} particles, more than max_particles = {}",
+                    self.max_particles
+                ),
+            ));
+        }
+        if self.max_particles > 50_000_000 {
+            return Err(invalid(
+                "max_particles",
+                format!("{} exceeds the hard limit of 50000000", self.max_particles),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// One built-in scene: its name, a one-line description, and how to build it.
+pub struct BuiltinScene {
+    pub name: &'static str,
+    pub description: &'static str,
+    build: fn() -> Scene,
+}
+
+impl BuiltinScene {
+    /// The scene with all its values.
+    pub fn scene(&self) -> Scene {
+        let mut s = (self.build)();
+        s.name = self.name.to_string();
+        s.description = self.description.to_string();
+        s
+    }
+}
+
+/// The built-in scenes, in the order the viewer's number keys select them.
+pub const BUILTIN_SCENES: &[BuiltinScene] = &[
+    BuiltinScene {
+        name: "dam-break",
+        description: "1 m x 2 m water column collapsing in a 4 m x 3 m tank (5,000 particles)",
+        build: Scene::default,
+    },
+    BuiltinScene {
+        name: "hydrostatic",
+        description: "water 1 m deep at rest in a 2 m wide tank: pressure should be rho0*g*(H - y)",
+        build: || Scene {
+            tank: Tank {
+                min: [0.0, 0.0],
+                max: [2.0, 2.0],
+            },
+            fluid: vec![FluidBlock {
+                min: [0.0, 0.0],
+                max: [2.0, 1.0],
+                velocity: [0.0, 0.0],
+            }],
+            ..Scene::default()
+        },
+    },
+    BuiltinScene {
+        name: "double-dam-break",
+        description: "two 0.8 m x 1.6 m columns released from both ends of a 4 m x 3 m tank",
+        build: || Scene {
+            fluid: vec![
+                FluidBlock {
+                    min: [0.0, 0.0],
+                    max: [0.8, 1.6],
+                    velocity: [0.0, 0.0],
+                },
+                FluidBlock {
+                    min: [3.2, 0.0],
+                    max: [4.0, 1.6],
+                    velocity: [0.0, 0.0],
+                },
+            ],
+            ..Scene::default()
+        },
+    },
+    BuiltinScene {
+        name: "drop",
+        description: "a 0.6 m square of water falling into a 0.6 m deep pool",
+        build: || Scene {
+            tank: Tank {
+                min: [0.0, 0.0],
+                max: [3.0, 3.0],
+            },
+            fluid: vec![
+                FluidBlock {
+                    min: [0.0, 0.0],
+                    max: [3.0, 0.6],
+                    velocity: [0.0, 0.0],
+                },
+                FluidBlock {
+                    min: [1.2, 1.8],
+                    max: [1.8, 2.4],
+                    velocity: [0.0, -1.0],
+                },
+            ],
+            ..Scene::default()
+        },
+    },
+    BuiltinScene {
+        name: "obstacle",
+        description: "a dam break against a block and a ramp in the middle of the tank",
+        build: || Scene {
+            obstacles: vec![
+                Obstacle::Rect {
+                    min: [2.0, 0.0],
+                    max: [2.2, 0.5],
+                },
+                Obstacle::Polyline {
+                    points: vec![[3.0, 0.0], [4.0, 0.8]],
+                },
+            ],
+            ..Scene::default()
+        },
+    },
+];
+
+/// Look up a built-in scene by name.
+pub fn builtin(name: &str) -> Option<Scene> {
+    BUILTIN_SCENES
+        .iter()
+        .find(|b| b.name == name)
+        .map(BuiltinScene::scene)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn err(text: &str) -> String {
+        Scene::from_json(text).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn empty_object_gives_the_default_scene() {
+        let s = Scene::from_json("{}").unwrap();
+        assert_eq!(s, Scene::default());
+    }
+
+    #[test]
+    fn resolved_json_round_trips() {
+        for b in BUILTIN_SCENES {
+            let s = b.scene();
+            s.validate().unwrap();
+            let back = Scene::from_json(&s.to_json()).unwrap();
+            assert_eq!(back, s, "{}", b.name);
+        }
+    }
+
+    #[test]
+    fn malformed_scenes_name_the_problem() {
+        let cases: &[(&str, &str)] = &[
+            ("", "empty"),
+            ("   \n", "empty"),
+            ("[1, 2]", "expected struct Scene"),
+            ("{\"particle_radius\": 0.01", "EOF"),
+            ("{\"particle_radius\": -0.01}", "particle_radius"),
+            ("{\"particle_radius\": 0}", "particle_radius"),
+            ("{\"particle_radius\": \"big\"}", "particle_radius"),
+            ("{\"radius\": 0.01}", "unknown field `radius`"),
+            ("{\"solver\": {\"tolerance\": 1}}", "solver"),
+            ("{\"solver\": {\"method\": \"pbf\"}}", "solver.method"),
+            (
+                "{\"solver\": {\"max_iterations\": 0}}",
+                "solver.max_iterations",
+            ),
+            (
+                "{\"solver\": {\"min_iterations\": 5, \"max_iterations\": 3}}",
+                "solver.min_iterations",
+            ),
+            (
+                "{\"solver\": {\"density_tolerance_pct\": -1}}",
+                "solver.density_tolerance_pct",
+            ),
+            ("{\"time_step\": {\"cfl\": 2}}", "time_step.cfl"),
+            (
+                "{\"time_step\": {\"min\": 0.1, \"max\": 0.01}}",
+                "time_step.min",
+            ),
+            (
+                "{\"tank\": {\"min\": [0, 0], \"max\": [0, 1]}}",
+                "tank.max[0]",
+            ),
+            ("{\"tank\": {\"min\": [0, 0]}}", "tank"),
+            (
+                "{\"fluid\": [{\"min\": [0, 0], \"max\": [5, 1]}]}",
+                "fluid[0].max[0]",
+            ),
+            (
+                "{\"fluid\": [{\"min\": [0, -1], \"max\": [1, 1]}]}",
+                "fluid[0].min[1]",
+            ),
+            ("{\"fluid\": []}", "fluid"),
+            ("{\"max_particles\": 100}", "max_particles"),
+            (
+                "{\"viscosity\": {\"kinematic\": -1e-6}}",
+                "viscosity.kinematic",
+            ),
+            ("{\"gravity\": [0]}", "gravity"),
+            (
+                "{\"obstacles\": [{\"type\": \"polyline\", \"points\": [[1, 1]]}]}",
+                "obstacles[0].points",
+            ),
+            ("{\"obstacles\": [{\"type\": \"circle\"}]}", "obstacles[0]"),
+            ("{\"particle_radius\": 1e-9}", "particle_radius"),
+            ("{\"particle_radius\": 3}", "particle_radius"),
+        ];
+        for (text, needle) in cases {
+            let msg = err(text);
+            assert!(
+                msg.contains(needle),
+                "scene {text:?}: message {msg:?} does not mention {needle:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn non_finite_numbers_are_rejected() {
+        // JSON has no NaN literal; a huge exponent overflows to infinity in serde_json.
+        let msg = err("{\"gravity\": [0, -1e400]}");
+        assert!(msg.contains("gravity"), "{msg}");
+        let mut s = Scene::default();
+        s.gravity = [f64::NAN, -9.81];
+        assert!(s.validate().unwrap_err().to_string().contains("gravity[0]"));
+    }
+
+    #[test]
+    fn lattice_count_is_exact_for_whole_multiples() {
+        let s = Scene::default();
+        assert_eq!(s.lattice_count(1.0), 50);
+        assert_eq!(s.lattice_count(2.0), 100);
+        assert_eq!(s.fluid_particle_count(), 5000);
+    }
+}

@@ -1,0 +1,646 @@
+//! The simulation: owns the particle state, runs one DFSPH (or WCSPH) step at a time with CFL
+//! time stepping, and reports diagnostics for every step.
+
+use glam::Vec2;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::boundary::{self, Body, BodyId, BoundarySamples};
+use crate::forces::{self, PointerForce, Viscosity};
+use crate::kernel::CubicSpline;
+use crate::neighbors::{Grid, NeighborLists};
+use crate::particles::{BoundaryParticles, FluidParticles, Scratch};
+use crate::scene::{Method, Obstacle, Scene, SceneError};
+use crate::solver::{self, Neighborhood, SolveLimits, SolveReport, SolverScratch};
+
+/// Diagnostics of one step.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct StepStats {
+    /// Steps taken so far, this one included.
+    pub step: u64,
+    /// Simulated time at the end of the step, s.
+    pub time: f64,
+    /// The step's Δt, s.
+    pub dt: f64,
+    /// Fluid particles.
+    pub n_fluid: usize,
+    /// Boundary particles.
+    pub n_boundary: usize,
+    /// Iterations of the density solve (0 for WCSPH).
+    pub density_iterations: u32,
+    /// Iterations of the divergence solve (0 when it is off, and for WCSPH).
+    pub divergence_iterations: u32,
+    /// Average relative compression at the end of the density solve, percent (WCSPH: of the
+    /// densities).
+    pub avg_density_error_pct: f64,
+    /// Largest single-particle compression, percent.
+    pub max_density_error_pct: f64,
+    /// Average relative density change per step left by the divergence solve, percent.
+    pub divergence_error_pct: f64,
+    /// Largest fluid speed after the step, m/s.
+    pub max_speed: f64,
+    /// Kinetic energy per metre of depth, J/m (2D).
+    pub kinetic_energy: f64,
+    /// Particles that left the tank this step and were put back: each one means the wall
+    /// leaked. Should stay 0.
+    pub clamped: u32,
+    /// Particles whose position or velocity became NaN or infinite this step and were put
+    /// back at rest. Should stay 0.
+    pub non_finite: u32,
+    /// Average neighbour count (fluid and boundary) per fluid particle.
+    pub avg_neighbors: f64,
+}
+
+/// The state of one running scene.
+pub struct Simulation {
+    pub(crate) scene: Scene,
+    pub(crate) kernel: CubicSpline,
+    /// Lattice spacing d, m.
+    pub(crate) spacing: f32,
+    /// Volume of one fluid particle V = m/ρ0, m² (chosen so the initial lattice is at ρ0).
+    pub(crate) volume: f32,
+    pub(crate) gravity: Vec2,
+    pub(crate) fluid: FluidParticles,
+    pub(crate) boundary: BoundaryParticles,
+    /// Body 0 is the tank.
+    pub(crate) bodies: Vec<Body>,
+    /// γ of [`boundary::wall_volume_correction`].
+    wall_gamma: f32,
+    /// Boundary particles were added or removed: recompute volumes.
+    pub(crate) boundary_changed: bool,
+    fluid_grid: Grid,
+    boundary_grid: Grid,
+    fluid_lists: NeighborLists,
+    boundary_lists: NeighborLists,
+    fluid_grad: Vec<Vec2>,
+    boundary_grad: Vec<Vec2>,
+    scratch: Scratch,
+    solver_scratch: SolverScratch,
+    pub(crate) time: f64,
+    pub(crate) step_count: u64,
+    /// Δt of the previous step (the divergence solve measures its error over it).
+    last_dt: f32,
+    pub(crate) next_id: u32,
+    stats: StepStats,
+    total_clamped: u64,
+    total_non_finite: u64,
+    pub(crate) pointer: Option<PointerForce>,
+    /// Shaking: −1 (left) … 1 (right), held until changed.
+    pub(crate) shake_drive: f32,
+}
+
+/// Particle data in creation order, for output.
+#[derive(Clone, Debug, Default)]
+pub struct Snapshot {
+    pub time: f64,
+    pub id: Vec<u32>,
+    pub position: Vec<Vec2>,
+    pub velocity: Vec<Vec2>,
+    /// kg/m³.
+    pub density: Vec<f32>,
+    /// Pa.
+    pub pressure: Vec<f32>,
+}
+
+impl Simulation {
+    /// Build the initial state: fluid lattices, boundary particles with their volumes, and the
+    /// particle mass that puts an interior lattice particle exactly at ρ0.
+    pub fn new(scene: &Scene) -> Result<Self, SceneError> {
+        scene.validate()?;
+        let d = scene.spacing() as f32;
+        let kernel = CubicSpline::new(scene.support() as f32);
+        let volume = 1.0 / lattice_kernel_sum(&kernel, d);
+        let mut sim = Simulation {
+            scene: scene.clone(),
+            kernel,
+            spacing: d,
+            volume,
+            gravity: to_vec2(scene.gravity),
+            fluid: FluidParticles::default(),
+            boundary: BoundaryParticles::default(),
+            bodies: Vec::new(),
+            wall_gamma: boundary::wall_volume_correction(&kernel, d),
+            boundary_changed: true,
+            fluid_grid: Grid::new(kernel.support()),
+            boundary_grid: Grid::new(kernel.support()),
+            fluid_lists: NeighborLists::default(),
+            boundary_lists: NeighborLists::default(),
+            fluid_grad: Vec::new(),
+            boundary_grad: Vec::new(),
+            scratch: Scratch::default(),
+            solver_scratch: SolverScratch::default(),
+            time: 0.0,
+            step_count: 0,
+            last_dt: scene.time_step.max as f32,
+            next_id: 0,
+            stats: StepStats::default(),
+            total_clamped: 0,
+            total_non_finite: 0,
+            pointer: None,
+            shake_drive: 0.0,
+        };
+        for block in &scene.fluid {
+            let nx = scene.lattice_count(block.max[0] - block.min[0]);
+            let ny = scene.lattice_count(block.max[1] - block.min[1]);
+            let v = to_vec2(block.velocity);
+            for j in 0..ny {
+                for i in 0..nx {
+                    // Lattice sites in f64, so long blocks stay exactly periodic.
+                    let x = block.min[0] + (i as f64 + 0.5) * scene.spacing();
+                    let y = block.min[1] + (j as f64 + 0.5) * scene.spacing();
+                    let id = sim.next_id;
+                    sim.next_id += 1;
+                    sim.fluid.push(Vec2::new(x as f32, y as f32), v, id);
+                }
+            }
+        }
+        let mut samples = BoundarySamples::default();
+        samples.add_tank(to_vec2(scene.tank.min), to_vec2(scene.tank.max), d, 0);
+        sim.bodies.push(Body::default());
+        for obstacle in &scene.obstacles {
+            let body = sim.bodies.len() as BodyId;
+            sim.bodies.push(Body::default());
+            match obstacle {
+                Obstacle::Rect { min, max } => {
+                    samples.add_rect(to_vec2(*min), to_vec2(*max), d, body)
+                }
+                Obstacle::Polyline { points } => {
+                    let pts: Vec<Vec2> = points.iter().map(|&p| to_vec2(p)).collect();
+                    samples.add_polyline(&pts, d, body)
+                }
+            }
+        }
+        sim.add_boundary_samples(samples);
+        sim.update_neighborhoods();
+        Ok(sim)
+    }
+
+    pub(crate) fn add_boundary_samples(&mut self, samples: BoundarySamples) {
+        for (p, b) in samples.positions.into_iter().zip(samples.bodies) {
+            self.boundary.position.push(p);
+            self.boundary
+                .velocity
+                .push(self.bodies[b as usize].velocity);
+            self.boundary.volume.push(0.0);
+            self.boundary.body.push(b);
+        }
+        self.boundary_changed = true;
+    }
+
+    /// Sort both particle sets, rebuild neighbour lists, densities and factors.
+    fn update_neighborhoods(&mut self) {
+        let order = self.boundary_grid.build(&self.boundary.position).to_vec();
+        self.boundary.permute(&order, &mut self.scratch);
+        if self.boundary_changed {
+            boundary::volumes(
+                &self.boundary_grid,
+                &self.kernel,
+                self.wall_gamma,
+                &mut self.boundary.volume,
+            );
+            self.boundary_changed = false;
+        }
+        let order = self.fluid_grid.build(&self.fluid.position);
+        self.fluid.permute(order, &mut self.scratch);
+        for v in [&mut self.fluid.density_ratio, &mut self.fluid.factor] {
+            v.resize(self.fluid.position.len(), 0.0);
+        }
+        self.fluid
+            .acceleration
+            .resize(self.fluid.position.len(), Vec2::ZERO);
+        self.fluid_grid
+            .neighbor_lists(&self.fluid.position, true, &mut self.fluid_lists);
+        self.boundary_grid
+            .neighbor_lists(&self.fluid.position, false, &mut self.boundary_lists);
+        solver::density_and_factor(
+            &self.kernel,
+            self.volume,
+            &mut self.fluid,
+            &self.boundary,
+            &self.fluid_lists,
+            &self.boundary_lists,
+            &mut self.fluid_grad,
+            &mut self.boundary_grad,
+        );
+    }
+
+    /// Advance by one time step (TVCG 2017, Algorithm 1, arranged so that a step starts from
+    /// fresh neighbourhoods): neighbourhoods → densities and factors → divergence solve →
+    /// non-pressure forces → CFL Δt → predicted velocities → density solve → advection.
+    pub fn step(&mut self) -> &StepStats {
+        self.update_body_motion();
+        self.update_neighborhoods();
+        let p = &self.scene.solver;
+        let method = p.method;
+        let warm = p.warm_start;
+        let divergence = p.divergence_solve;
+        let density_limits = SolveLimits {
+            tolerance_pct: p.density_tolerance_pct,
+            min_iterations: p.min_iterations,
+            max_iterations: p.max_iterations,
+        };
+        let divergence_limits = SolveLimits {
+            tolerance_pct: p.divergence_tolerance_pct,
+            ..density_limits
+        };
+        let nb = Neighborhood {
+            fluid: &self.fluid_lists,
+            fluid_grad: &self.fluid_grad,
+            boundary: &self.boundary_lists,
+            boundary_grad: &self.boundary_grad,
+        };
+
+        let mut div_report = SolveReport::default();
+        if method == Method::Dfsph && divergence {
+            div_report = solver::divergence_solve(
+                self.volume,
+                self.last_dt,
+                warm,
+                &mut self.fluid,
+                &self.boundary,
+                &nb,
+                divergence_limits,
+                &mut self.solver_scratch,
+            );
+        }
+
+        let v = &self.scene.viscosity;
+        let viscosity = Viscosity {
+            xsph: v.xsph as f32,
+            kinematic: v.kinematic as f32,
+            boundary_kinematic: v.boundary_kinematic as f32,
+        };
+        let dt = self.cfl_time_step();
+        forces::non_pressure_accelerations(
+            &self.kernel,
+            self.volume,
+            dt,
+            self.gravity,
+            viscosity,
+            self.pointer,
+            &mut self.fluid,
+            &self.boundary,
+            &nb,
+        );
+        self.fluid
+            .velocity
+            .par_iter_mut()
+            .zip(self.fluid.acceleration.par_iter())
+            .for_each(|(v, &a)| *v += dt * a);
+
+        let density_report = match method {
+            Method::Dfsph => solver::density_solve(
+                self.volume,
+                dt,
+                warm,
+                &mut self.fluid,
+                &self.boundary,
+                &nb,
+                density_limits,
+                &mut self.solver_scratch,
+            ),
+            Method::Wcsph => solver::wcsph_pressure(
+                self.volume,
+                dt,
+                self.scene.rest_density as f32,
+                p.wcsph_stiffness as f32,
+                p.wcsph_exponent as f32,
+                &mut self.fluid,
+                &self.boundary,
+                &nb,
+                &mut self.solver_scratch,
+            ),
+        };
+
+        // Advection.
+        self.fluid
+            .position
+            .par_iter_mut()
+            .zip(self.fluid.velocity.par_iter())
+            .for_each(|(x, &v)| *x += dt * v);
+        self.move_bodies(dt);
+        let (clamped, non_finite) = self.enforce_tank();
+
+        let avg_neighbors = if self.fluid.is_empty() {
+            0.0
+        } else {
+            (self.fluid_lists.pair_count() + self.boundary_lists.pair_count()) as f64
+                / self.fluid.len() as f64
+        };
+        self.time += dt as f64;
+        self.step_count += 1;
+        self.last_dt = dt;
+        self.total_clamped += clamped as u64;
+        self.total_non_finite += non_finite as u64;
+        let (max_speed, kinetic_energy) = self.speed_and_energy();
+        self.stats = StepStats {
+            step: self.step_count,
+            time: self.time,
+            dt: dt as f64,
+            n_fluid: self.fluid.len(),
+            n_boundary: self.boundary.len(),
+            density_iterations: density_report.iterations,
+            divergence_iterations: div_report.iterations,
+            avg_density_error_pct: density_report.avg_error_pct,
+            max_density_error_pct: density_report.max_error_pct,
+            divergence_error_pct: div_report.avg_error_pct,
+            max_speed,
+            kinetic_energy,
+            clamped,
+            non_finite,
+            avg_neighbors,
+        };
+        &self.stats
+    }
+
+    /// CFL condition `Δt = λ·d / v_max` (v_max includes moving walls; WCSPH adds the speed of
+    /// sound), clamped to the scene's bounds.
+    fn cfl_time_step(&self) -> f32 {
+        let ts = &self.scene.time_step;
+        let fluid_max = self
+            .fluid
+            .velocity
+            .par_iter()
+            .map(|v| v.length_squared())
+            .reduce(|| 0.0, f32::max)
+            .sqrt();
+        let wall_max = self
+            .bodies
+            .iter()
+            .map(|b| b.velocity.length())
+            .fold(0.0, f32::max);
+        let mut v_max = fluid_max.max(wall_max);
+        if self.scene.solver.method == Method::Wcsph {
+            let s = &self.scene.solver;
+            v_max += (s.wcsph_exponent * s.wcsph_stiffness / self.scene.rest_density).sqrt() as f32;
+        }
+        let dt = if v_max > 0.0 {
+            ts.cfl as f32 * self.spacing / v_max
+        } else {
+            ts.max as f32
+        };
+        dt.clamp(ts.min as f32, ts.max as f32)
+    }
+
+    /// Tank motion from the shake drive: a critically damped spring pulls the tank towards
+    /// `drive · MAX_SHAKE_OFFSET`, with bounded acceleration and speed, so holding a key
+    /// slides the tank over and releasing it brings the tank back.
+    fn update_body_motion(&mut self) {
+        let dt = self.last_dt;
+        let tank = &mut self.bodies[0];
+        let target = self.shake_drive * MAX_SHAKE_OFFSET;
+        let omega = 2.0 * std::f32::consts::PI * SHAKE_FREQUENCY;
+        let acc = (omega * omega * (target - tank.offset.x) - 2.0 * omega * tank.velocity.x)
+            .clamp(-MAX_SHAKE_ACCELERATION, MAX_SHAKE_ACCELERATION);
+        let vx = (tank.velocity.x + acc * dt).clamp(-MAX_SHAKE_SPEED, MAX_SHAKE_SPEED);
+        if vx != tank.velocity.x || tank.velocity.y != 0.0 {
+            tank.velocity = Vec2::new(vx, 0.0);
+            let bodies = &self.bodies;
+            self.boundary
+                .velocity
+                .par_iter_mut()
+                .zip(self.boundary.body.par_iter())
+                .for_each(|(v, &b)| *v = bodies[b as usize].velocity);
+        }
+    }
+
+    fn move_bodies(&mut self, dt: f32) {
+        if self.bodies.iter().all(|b| b.velocity == Vec2::ZERO) {
+            return;
+        }
+        for b in &mut self.bodies {
+            b.offset += dt * b.velocity;
+        }
+        self.boundary
+            .position
+            .par_iter_mut()
+            .zip(self.boundary.velocity.par_iter())
+            .for_each(|(x, &v)| *x += dt * v);
+    }
+
+    /// The interior of the tank as it stands now (it moves when shaken), m.
+    pub fn tank_interior(&self) -> (Vec2, Vec2) {
+        let off = self.bodies[0].offset;
+        (
+            to_vec2(self.scene.tank.min) + off,
+            to_vec2(self.scene.tank.max) + off,
+        )
+    }
+
+    /// Last-resort containment: a particle outside the tank interior is put back inside (its
+    /// outward velocity removed) and counted, and a non-finite particle is reset to rest at
+    /// the tank centre and counted. Both counts should stay zero.
+    fn enforce_tank(&mut self) -> (u32, u32) {
+        let (lo, hi) = self.tank_interior();
+        let margin = 0.25 * self.spacing;
+        let inner_lo = lo + Vec2::splat(margin);
+        let inner_hi = hi - Vec2::splat(margin);
+        let centre = 0.5 * (lo + hi);
+        let wall_v = self.bodies[0].velocity;
+        self.fluid
+            .position
+            .par_iter_mut()
+            .zip(self.fluid.velocity.par_iter_mut())
+            .map(|(x, v)| {
+                if !(x.is_finite() && v.is_finite()) {
+                    *x = centre;
+                    *v = Vec2::ZERO;
+                    return (0u32, 1u32);
+                }
+                if x.x >= lo.x && x.x <= hi.x && x.y >= lo.y && x.y <= hi.y {
+                    return (0, 0);
+                }
+                *x = x.clamp(inner_lo, inner_hi);
+                if (x.x <= inner_lo.x && v.x < wall_v.x) || (x.x >= inner_hi.x && v.x > wall_v.x) {
+                    v.x = wall_v.x;
+                }
+                if (x.y <= inner_lo.y && v.y < wall_v.y) || (x.y >= inner_hi.y && v.y > wall_v.y) {
+                    v.y = wall_v.y;
+                }
+                (1, 0)
+            })
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+    }
+
+    fn speed_and_energy(&self) -> (f64, f64) {
+        let (max2, sum2) = self
+            .fluid
+            .velocity
+            .par_iter()
+            .map(|v| {
+                let s = v.length_squared() as f64;
+                (s, s)
+            })
+            .reduce(|| (0.0, 0.0), |a, b| (a.0.max(b.0), a.1 + b.1));
+        let mass = self.particle_mass() as f64;
+        (max2.sqrt(), 0.5 * mass * sum2)
+    }
+
+    // ---- Read access: the library API used by the viewer, the CLI and embedders. ----
+
+    /// The scene this simulation runs, with any parameter changes applied since.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// Simulated time, s.
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Steps taken.
+    pub fn step_count(&self) -> u64 {
+        self.step_count
+    }
+
+    /// Diagnostics of the last step (all zero before the first).
+    pub fn stats(&self) -> &StepStats {
+        &self.stats
+    }
+
+    /// Particles clamped back into the tank since the start. Non-zero means a leak.
+    pub fn total_clamped(&self) -> u64 {
+        self.total_clamped
+    }
+
+    /// Non-finite particles reset since the start. Non-zero means the solver broke down.
+    pub fn total_non_finite(&self) -> u64 {
+        self.total_non_finite
+    }
+
+    /// Number of fluid particles.
+    pub fn fluid_count(&self) -> usize {
+        self.fluid.len()
+    }
+
+    /// Fluid positions, m, in the solver's current (cell-sorted) order.
+    pub fn positions(&self) -> &[Vec2] {
+        &self.fluid.position
+    }
+
+    /// Fluid velocities, m/s, same order as [`Self::positions`].
+    pub fn velocities(&self) -> &[Vec2] {
+        &self.fluid.velocity
+    }
+
+    /// Stable particle ids, same order as [`Self::positions`].
+    pub fn ids(&self) -> &[u32] {
+        &self.fluid.id
+    }
+
+    /// Density relative to ρ0 at the start of the last step, same order as
+    /// [`Self::positions`].
+    pub fn density_ratios(&self) -> &[f32] {
+        &self.fluid.density_ratio
+    }
+
+    /// Pressure divided by ρ0, m²/s², same order as [`Self::positions`]. Multiply by
+    /// [`Self::rest_density`] for pascals.
+    pub fn pressures_over_rho0(&self) -> &[f32] {
+        &self.fluid.pressure_over_rho0
+    }
+
+    /// Boundary particle positions, m.
+    pub fn boundary_positions(&self) -> &[Vec2] {
+        &self.boundary.position
+    }
+
+    /// The body of each boundary particle (0 = tank).
+    pub fn boundary_bodies(&self) -> &[BodyId] {
+        &self.boundary.body
+    }
+
+    /// ρ0, kg/m³.
+    pub fn rest_density(&self) -> f32 {
+        self.scene.rest_density as f32
+    }
+
+    /// Particle radius r, m.
+    pub fn particle_radius(&self) -> f32 {
+        0.5 * self.spacing
+    }
+
+    /// Mass of one fluid particle per metre of depth, kg/m: `ρ0 / Σ_j W(x_i − x_j)` over the
+    /// ideal lattice, so the initial lattice is at ρ0 exactly.
+    pub fn particle_mass(&self) -> f32 {
+        self.scene.rest_density as f32 * self.volume
+    }
+
+    /// Current gravity, m/s².
+    pub fn gravity(&self) -> Vec2 {
+        self.gravity
+    }
+
+    /// The kernel in use.
+    pub fn kernel(&self) -> &CubicSpline {
+        &self.kernel
+    }
+
+    /// Particle data sorted by id, densities in kg/m³ and pressures in Pa.
+    pub fn snapshot(&self) -> Snapshot {
+        let mut order: Vec<usize> = (0..self.fluid.len()).collect();
+        order.sort_unstable_by_key(|&i| self.fluid.id[i]);
+        let rho0 = self.rest_density();
+        Snapshot {
+            time: self.time,
+            id: order.iter().map(|&i| self.fluid.id[i]).collect(),
+            position: order.iter().map(|&i| self.fluid.position[i]).collect(),
+            velocity: order.iter().map(|&i| self.fluid.velocity[i]).collect(),
+            density: order
+                .iter()
+                .map(|&i| self.fluid.density_ratio[i] * rho0)
+                .collect(),
+            pressure: order
+                .iter()
+                .map(|&i| self.fluid.pressure_over_rho0[i] * rho0)
+                .collect(),
+        }
+    }
+
+    /// Front of the fluid: the largest x of a fluid particle with at least `min_neighbors`
+    /// fluid neighbours (an isolated spray particle is not the front), measured from the
+    /// tank's left wall. `None` when no particle qualifies.
+    pub fn front_position(&self, min_neighbors: usize) -> Option<f64> {
+        let (lo, _) = self.tank_interior();
+        (0..self.fluid.len())
+            .filter(|&i| {
+                self.fluid_lists.len() == self.fluid.len() && self.count_close(i) >= min_neighbors
+            })
+            .map(|i| (self.fluid.position[i].x - lo.x) as f64)
+            .fold(None, |m: Option<f64>, x| Some(m.map_or(x, |m| m.max(x))))
+    }
+
+    /// Fluid neighbours of particle `i` at its current position.
+    fn count_close(&self, i: usize) -> usize {
+        let mut count = 0usize;
+        self.fluid_grid
+            .for_each_near(self.fluid.position[i], |_, _| count += 1);
+        count.saturating_sub(1)
+    }
+}
+
+/// How far the tank slides when shaken, m.
+pub const MAX_SHAKE_OFFSET: f32 = 0.4;
+/// Natural frequency of the tank's return spring, Hz.
+pub const SHAKE_FREQUENCY: f32 = 1.0;
+/// Bound on the tank's acceleration, m/s².
+pub const MAX_SHAKE_ACCELERATION: f32 = 15.0;
+/// Bound on the tank's speed, m/s.
+pub const MAX_SHAKE_SPEED: f32 = 2.0;
+
+/// `Σ_j W(x_i − x_j)` over an infinite square lattice of spacing `d` (the particle itself
+/// included): the reciprocal of the volume that puts the lattice at rest density.
+pub fn lattice_kernel_sum(kernel: &CubicSpline, d: f32) -> f32 {
+    let reach = (kernel.support() / d).ceil() as i32 + 1;
+    let mut sum = 0.0f64;
+    for j in -reach..=reach {
+        for i in -reach..=reach {
+            sum += kernel.w(Vec2::new(i as f32 * d, j as f32 * d).length()) as f64;
+        }
+    }
+    sum as f32
+}
+
+pub(crate) fn to_vec2(p: [f64; 2]) -> Vec2 {
+    Vec2::new(p[0] as f32, p[1] as f32)
+}

@@ -1,0 +1,419 @@
+//! Pressure solvers: DFSPH (Bender & Koschier 2015; TVCG 2017, Algorithms 2 and 3) and the
+//! WCSPH baseline (Becker & Teschner 2007).
+//!
+//! Notation. Everything is written with particle volumes V_j = m_j/ρ0 and relative densities
+//! s_i = ρ_i/ρ0, which keeps the numbers near 1 in single precision:
+//!
+//! * density (eq. 2 of the 2017 paper, with Akinci boundary terms):
+//!   `s_i = Σ_j V_j W_ij + Σ_b Ψ_b W_ib` (the sum over j includes i itself);
+//! * a pressure-like field κ (m²/s) changes velocities by
+//!   `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − Σ_b Ψ_b (κ_i + κ_i) ∇W_ib` (eq. 8–9); κ = Δt·p/ρ0
+//!   for a pressure p. The boundary term mirrors the particle's own pressure onto the wall
+//!   (p_b = p_i) inside the same symmetric formula as fluid pairs. Akinci's single term
+//!   (p_b = 0) cannot hold a resting fluid up: on a lattice beside a wall the fluid and wall
+//!   gradient sums cancel, the particle's own pressure exerts no force on it, and the bottom
+//!   row sinks into the wall until the lattice is distorted.
+//! * factor (eq. 13, over ρ_i, re-derived for the mirrored wall term): with
+//!   `g_f = Σ_j V_j ∇W_ij` and `g_b = Σ_b Ψ_b ∇W_ib`,
+//!   `a_i = 1 / ((g_f + 2g_b)·(g_f + g_b) + Σ_j |V_j ∇W_ij|²)`, the inverse of the response
+//!   of `s_i` to the particle's own κ_i.
+//!
+//! The density solve drives the predicted relative density `s*_i = s_i + Δt·Dρ_i/Dt/ρ0` to 1
+//! with `Δκ_i = max(s*_i − 1, 0)·a_i/Δt` (only compression is corrected: the free surface
+//! must not be pulled together); the divergence solve drives `Dρ_i/Dt` to 0 with
+//! `Δκ_i = max(Dρ_i/Dt/ρ0, 0)·a_i`. Both are Jacobi iterations over the same two passes.
+
+use glam::Vec2;
+use rayon::prelude::*;
+
+use crate::kernel::CubicSpline;
+use crate::neighbors::NeighborLists;
+use crate::particles::{BoundaryParticles, FluidParticles};
+
+/// Read-only view of one step's neighbourhoods: lists and the kernel gradients cached for
+/// every pair, valid while positions do not change.
+pub struct Neighborhood<'a> {
+    /// Fluid–fluid lists (self excluded) and `∇W_ij` per pair.
+    pub fluid: &'a NeighborLists,
+    pub fluid_grad: &'a [Vec2],
+    /// Fluid–boundary lists and `∇W_ib` per pair.
+    pub boundary: &'a NeighborLists,
+    pub boundary_grad: &'a [Vec2],
+}
+
+/// Compute `s_i`, the DFSPH factor, and cache all kernel gradients (TVCG 2017, Alg. 1 lines
+/// 2–3).
+#[allow(clippy::too_many_arguments)]
+pub fn density_and_factor(
+    kernel: &CubicSpline,
+    volume: f32,
+    fluid: &mut FluidParticles,
+    boundary: &BoundaryParticles,
+    fluid_lists: &NeighborLists,
+    boundary_lists: &NeighborLists,
+    fluid_grad: &mut Vec<Vec2>,
+    boundary_grad: &mut Vec<Vec2>,
+) {
+    fluid_grad.resize(fluid_lists.pair_count(), Vec2::ZERO);
+    boundary_grad.resize(boundary_lists.pair_count(), Vec2::ZERO);
+    let pos = &fluid.position;
+    let bpos = &boundary.position;
+    let bvol = &boundary.volume;
+    // The factor's guard: a particle whose gradient sums are this small has (almost) no
+    // neighbours and gets no pressure (its density cannot be corrected anyway).
+    let eps = 1.0e-6 / (kernel.support() * kernel.support());
+    let self_w = volume * kernel.w_zero();
+
+    // Gradients: one parallel pass per list, split along particle ranges.
+    split_by_particle(fluid_grad, fluid_lists)
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(i, grads)| {
+            let xi = pos[i];
+            for (g, &j) in grads.iter_mut().zip(fluid_lists.of(i)) {
+                *g = kernel.grad_w(xi - pos[j as usize]);
+            }
+        });
+    split_by_particle(boundary_grad, boundary_lists)
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(i, grads)| {
+            let xi = pos[i];
+            for (g, &b) in grads.iter_mut().zip(boundary_lists.of(i)) {
+                *g = kernel.grad_w(xi - bpos[b as usize]);
+            }
+        });
+
+    let fluid_grad = &*fluid_grad;
+    let boundary_grad = &*boundary_grad;
+    fluid
+        .density_ratio
+        .par_iter_mut()
+        .zip(fluid.factor.par_iter_mut())
+        .enumerate()
+        .for_each(|(i, (s, a))| {
+            let xi = pos[i];
+            let mut density = self_w;
+            let mut grad_fluid = Vec2::ZERO;
+            let mut grad_wall = Vec2::ZERO;
+            let mut grad_sq = 0.0f32;
+            let r = fluid_lists.range(i);
+            for (&j, &g) in fluid_lists.indices[r.clone()].iter().zip(&fluid_grad[r]) {
+                density += volume * kernel.w((xi - pos[j as usize]).length());
+                let vg = volume * g;
+                grad_fluid += vg;
+                grad_sq += vg.length_squared();
+            }
+            let r = boundary_lists.range(i);
+            for (&b, &g) in boundary_lists.indices[r.clone()]
+                .iter()
+                .zip(&boundary_grad[r])
+            {
+                let vb = bvol[b as usize];
+                density += vb * kernel.w((xi - bpos[b as usize]).length());
+                grad_wall += vb * g;
+            }
+            *s = density;
+            let own = (grad_fluid + 2.0 * grad_wall).dot(grad_fluid + grad_wall);
+            let denom = own.max(0.0) + grad_sq;
+            *a = if denom > eps { 1.0 / denom } else { 0.0 };
+        });
+}
+
+/// Split a per-pair array into one mutable slice per particle.
+fn split_by_particle<'a, T>(values: &'a mut [T], lists: &NeighborLists) -> Vec<&'a mut [T]> {
+    let mut out = Vec::with_capacity(lists.len());
+    let mut rest = values;
+    for i in 0..lists.len() {
+        let (head, tail) = rest.split_at_mut(lists.range(i).len());
+        out.push(head);
+        rest = tail;
+    }
+    out
+}
+
+/// Relative rate of density change `Dρ_i/Dt / ρ0 = Σ_j V_j (v_i − v_j)·∇W_ij +
+/// Σ_b Ψ_b (v_i − v_b)·∇W_ib` (continuity equation, TVCG 2017 eq. 7), in 1/s.
+#[inline]
+fn density_rate(
+    i: usize,
+    volume: f32,
+    vel: &[Vec2],
+    boundary: &BoundaryParticles,
+    nb: &Neighborhood,
+) -> f32 {
+    let vi = vel[i];
+    let mut rate = 0.0f32;
+    let r = nb.fluid.range(i);
+    let mut fluid_sum = 0.0f32;
+    for (&j, &g) in nb.fluid.indices[r.clone()].iter().zip(&nb.fluid_grad[r]) {
+        fluid_sum += (vi - vel[j as usize]).dot(g);
+    }
+    rate += volume * fluid_sum;
+    let r = nb.boundary.range(i);
+    for (&b, &g) in nb.boundary.indices[r.clone()]
+        .iter()
+        .zip(&nb.boundary_grad[r])
+    {
+        let b = b as usize;
+        rate += boundary.volume[b] * (vi - boundary.velocity[b]).dot(g);
+    }
+    rate
+}
+
+/// Apply `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − 2κ_i Σ_b Ψ_b ∇W_ib` to every fluid velocity.
+pub fn apply_pressure(
+    volume: f32,
+    kappa: &[f32],
+    vel: &mut [Vec2],
+    boundary: &BoundaryParticles,
+    nb: &Neighborhood,
+) {
+    vel.par_iter_mut().enumerate().for_each(|(i, v)| {
+        let ki = kappa[i];
+        let r = nb.fluid.range(i);
+        let mut dv = Vec2::ZERO;
+        for (&j, &g) in nb.fluid.indices[r.clone()].iter().zip(&nb.fluid_grad[r]) {
+            dv += (ki + kappa[j as usize]) * g;
+        }
+        dv *= volume;
+        if ki != 0.0 {
+            let r = nb.boundary.range(i);
+            let mut db = Vec2::ZERO;
+            for (&b, &g) in nb.boundary.indices[r.clone()]
+                .iter()
+                .zip(&nb.boundary_grad[r])
+            {
+                db += boundary.volume[b as usize] * g;
+            }
+            dv += 2.0 * ki * db;
+        }
+        *v -= dv;
+    });
+}
+
+/// Outcome of one solve.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SolveReport {
+    pub iterations: u32,
+    /// Average error at exit, percent.
+    pub avg_error_pct: f64,
+    /// Largest single-particle error at exit, percent.
+    pub max_error_pct: f64,
+}
+
+/// Settings shared by both solves.
+#[derive(Clone, Copy, Debug)]
+pub struct SolveLimits {
+    pub tolerance_pct: f64,
+    pub min_iterations: u32,
+    pub max_iterations: u32,
+}
+
+/// Scratch arrays of the Jacobi iterations.
+#[derive(Default, Clone, Debug)]
+pub struct SolverScratch {
+    /// Per-particle residual (source term) of the current iteration.
+    residual: Vec<f32>,
+    /// Per-particle stiffness increment of the current iteration.
+    delta: Vec<f32>,
+}
+
+/// The Jacobi iteration shared by the density and divergence solves: compute every residual,
+/// stop when the average compression (in percent, after `to_pct`) is within tolerance, else
+/// turn residuals into stiffness increments, apply them, and accumulate them into `total`.
+///
+/// Only compression is corrected, but the clamp is on the accumulated stiffness rather than on
+/// the residual: a particle that the warm start pushed too far apart (negative residual) gets a
+/// negative increment until its stiffness reaches zero. Clamping the residual instead would
+/// make the stiffness a ratchet that only grows from step to step.
+#[allow(clippy::too_many_arguments)]
+fn jacobi_solve(
+    volume: f32,
+    fluid: &mut FluidParticles,
+    boundary: &BoundaryParticles,
+    nb: &Neighborhood,
+    limits: SolveLimits,
+    scratch: &mut SolverScratch,
+    residual_of: impl Fn(usize, f32) -> f32 + Sync,
+    to_pct: f64,
+    increment_scale: f32,
+    total: &mut [f32],
+) -> SolveReport {
+    let n = fluid.len();
+    scratch.residual.resize(n, 0.0);
+    scratch.delta.resize(n, 0.0);
+    if n == 0 {
+        return SolveReport::default();
+    }
+    let compute_residuals = |vel: &[Vec2], residual: &mut [f32]| -> (f64, f64) {
+        let (sum, max) = residual
+            .par_iter_mut()
+            .enumerate()
+            .map(|(i, e)| {
+                let rate = density_rate(i, volume, vel, boundary, nb);
+                *e = residual_of(i, rate).max(0.0);
+                (*e as f64, *e as f64)
+            })
+            .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));
+        (sum / n as f64 * to_pct, max * to_pct)
+    };
+    let (mut avg, mut max) = compute_residuals(&fluid.velocity, &mut scratch.residual);
+    let mut iterations = 0;
+    while (avg > limits.tolerance_pct || iterations < limits.min_iterations)
+        && iterations < limits.max_iterations
+    {
+        scratch
+            .delta
+            .par_iter_mut()
+            .zip(scratch.residual.par_iter())
+            .zip(fluid.factor.par_iter())
+            .zip(total.par_iter_mut())
+            .for_each(|(((d, &e), &a), t)| {
+                *d = e * a * increment_scale;
+                *t += *d;
+            });
+        apply_pressure(volume, &scratch.delta, &mut fluid.velocity, boundary, nb);
+        (avg, max) = compute_residuals(&fluid.velocity, &mut scratch.residual);
+        iterations += 1;
+    }
+    SolveReport {
+        iterations,
+        avg_error_pct: avg,
+        max_error_pct: max,
+    }
+}
+
+/// Divergence solve (TVCG 2017, Algorithm 2): make `Dρ/Dt = 0` so the velocity field is
+/// divergence-free. The error is the average relative density change over one step, `dt`.
+/// With `warm_start`, the previous step's κᵛ is applied first.
+#[allow(clippy::too_many_arguments)]
+pub fn divergence_solve(
+    volume: f32,
+    dt: f32,
+    warm_start: bool,
+    fluid: &mut FluidParticles,
+    boundary: &BoundaryParticles,
+    nb: &Neighborhood,
+    limits: SolveLimits,
+    scratch: &mut SolverScratch,
+) -> SolveReport {
+    let mut total = std::mem::take(&mut fluid.divergence_stiffness);
+    if warm_start {
+        let w = warm_factor();
+        total.par_iter_mut().for_each(|k| *k = k.max(0.0) * w);
+        apply_pressure(volume, &total, &mut fluid.velocity, boundary, nb);
+    } else {
+        total.iter_mut().for_each(|k| *k = 0.0);
+    }
+    let report = jacobi_solve(
+        volume,
+        fluid,
+        boundary,
+        nb,
+        limits,
+        scratch,
+        |_, rate| rate,
+        dt as f64 * 100.0,
+        1.0,
+        &mut total,
+    );
+    fluid.divergence_stiffness = total;
+    report
+}
+
+/// Density solve (TVCG 2017, Algorithm 3): correct the predicted velocities so that the
+/// predicted density `s_i + Δt·Dρ_i/Dt/ρ0` is 1 wherever the fluid is compressed. Afterwards
+/// `fluid.pressure_over_rho0` holds p/ρ0 of the step, used as the next warm start.
+#[allow(clippy::too_many_arguments)]
+pub fn density_solve(
+    volume: f32,
+    dt: f32,
+    warm_start: bool,
+    fluid: &mut FluidParticles,
+    boundary: &BoundaryParticles,
+    nb: &Neighborhood,
+    limits: SolveLimits,
+    scratch: &mut SolverScratch,
+) -> SolveReport {
+    // κ = Δt·p/ρ0; the stored pressure does not depend on Δt, so it carries over when Δt
+    // changes.
+    let mut total = std::mem::take(&mut fluid.pressure_over_rho0);
+    if warm_start {
+        let w = warm_factor();
+        total.par_iter_mut().for_each(|p| *p = p.max(0.0) * dt * w);
+        apply_pressure(volume, &total, &mut fluid.velocity, boundary, nb);
+    } else {
+        total.iter_mut().for_each(|k| *k = 0.0);
+    }
+    let density = std::mem::take(&mut fluid.density_ratio);
+    let report = jacobi_solve(
+        volume,
+        fluid,
+        boundary,
+        nb,
+        limits,
+        scratch,
+        |i, rate| density[i] + dt * rate - 1.0,
+        100.0,
+        1.0 / dt,
+        &mut total,
+    );
+    fluid.density_ratio = density;
+    total.par_iter_mut().for_each(|k| *k /= dt);
+    fluid.pressure_over_rho0 = total;
+    report
+}
+
+/// WCSPH: pressure from the Tait equation `p = B·((ρ/ρ0)^γ − 1)` (clamped at 0 so the free
+/// surface is not pulled together) and the symmetric pressure acceleration
+/// `a_i = −Σ_j m_j (p_i/ρ_i² + p_j/ρ_j²) ∇W_ij − Σ_b ρ0 Ψ_b 2p_i/ρ_i² ∇W_ib` (mirrored wall
+/// pressure, as in the DFSPH solves), applied to the
+/// velocities over `dt`. Returns the average and maximum compression in percent.
+#[allow(clippy::too_many_arguments)]
+pub fn wcsph_pressure(
+    volume: f32,
+    dt: f32,
+    rest_density: f32,
+    stiffness: f32,
+    exponent: f32,
+    fluid: &mut FluidParticles,
+    boundary: &BoundaryParticles,
+    nb: &Neighborhood,
+    scratch: &mut SolverScratch,
+) -> SolveReport {
+    let n = fluid.len();
+    scratch.delta.resize(n, 0.0);
+    fluid
+        .pressure_over_rho0
+        .par_iter_mut()
+        .zip(scratch.delta.par_iter_mut())
+        .zip(fluid.density_ratio.par_iter())
+        .for_each(|((p, k), &s)| {
+            let pressure = (stiffness * (s.powf(exponent) - 1.0)).max(0.0);
+            *p = pressure / rest_density;
+            // In the κ form: m_j p/ρ² = V_j ρ0 p/(ρ0 s)² = V_j (p/ρ0)/s², times Δt.
+            *k = dt * *p / (s * s);
+        });
+    apply_pressure(volume, &scratch.delta, &mut fluid.velocity, boundary, nb);
+    let (sum, max) = fluid
+        .density_ratio
+        .par_iter()
+        .map(|&s| {
+            let e = (s - 1.0).max(0.0) as f64;
+            (e, e)
+        })
+        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));
+    SolveReport {
+        iterations: 0,
+        avg_error_pct: if n > 0 { sum / n as f64 * 100.0 } else { 0.0 },
+        max_error_pct: max * 100.0,
+    }
+}
+
+fn warm_factor() -> f32 {
+    std::env::var("WARM")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0.5)
+}
