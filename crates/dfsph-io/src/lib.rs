@@ -1,1 +1,29 @@
+//! # dfsph-io — exports for dfsph2d
+//!
+//! Writers for the files `dfsph2d run` produces, all built on the solver's public API
+//! ([`dfsph::Snapshot`], [`dfsph::StepStats`]):
+//!
+//! - [`csv`]: particle snapshots (`x,y,vx,vy,density,pressure`) and the frame index
+//!   (`frame,time,file`);
+//! - [`stats`]: one row of [`dfsph::StepStats`] per step;
+//! - [`vtk`]: VTK XML UnstructuredGrid (`.vtu`) snapshots that ParaView opens, and a `.pvd`
+//!   collection that gives ParaView the frame times;
+//! - [`render`]: a CPU rasteriser (tiny-skia) that draws a frame to PNG, fluid coloured by
+//!   speed with a [`colormap`] and a legend.
+//!
+//! Every file is written atomically ([`atomic`]): to `NAME.tmp` in the same directory, then
+//! renamed, so a reader never sees a half-written file.
 
+pub mod atomic;
+pub mod colormap;
+pub mod csv;
+mod font;
+pub mod render;
+pub mod stats;
+pub mod vtk;
+
+pub use atomic::{write_atomic, AtomicFile};
+pub use csv::{write_frame_index, write_snapshot_csv, FrameRecord, SNAPSHOT_HEADER};
+pub use render::{render_frame, write_png, RenderGeometry, RenderOptions};
+pub use stats::{StatsCsvWriter, STATS_HEADER};
+pub use vtk::{write_pvd, write_vtu};

@@ -9,6 +9,24 @@ fn main() {
     if let Ok(t) = std::env::var("TOL") {
         sc.solver.density_tolerance_pct = t.parse().unwrap();
     }
+    if let Ok(t) = std::env::var("DTMAX") {
+        sc.time_step.max = t.parse().unwrap();
+    }
+    if std::env::var("NOG").is_ok() {
+        sc.gravity = [0.0, 0.0];
+    }
+    if std::env::var("NOX").is_ok() {
+        sc.viscosity.xsph = 0.0;
+    }
+    if std::env::var("DIV").is_ok() {
+        sc.solver.divergence_solve = false;
+    }
+    if std::env::var("NOWS").is_ok() {
+        sc.solver.warm_start = false;
+    }
+    if std::env::var("WC").is_ok() {
+        sc.solver.method = dfsph::scene::Method::Wcsph;
+    }
     let mut sim = Simulation::new(&sc).unwrap();
     let t0 = std::time::Instant::now();
     let mut next = 0.0;
@@ -18,6 +36,24 @@ fn main() {
         it += s.density_iterations as u64;
         itv += s.divergence_iterations as u64;
         steps += 1;
+        if std::env::var("ALL").is_ok() {
+            let (k, _) =
+                sim.velocities()
+                    .iter()
+                    .enumerate()
+                    .fold((0, 0.0f32), |(bk, bv), (k, v)| {
+                        if v.length() > bv {
+                            (k, v.length())
+                        } else {
+                            (bk, bv)
+                        }
+                    });
+            println!(
+                "  fastest at {:?} v={:?}",
+                sim.positions()[k],
+                sim.velocities()[k]
+            );
+        }
         if s.time >= next || std::env::var("ALL").is_ok() {
             next += until / 20.0;
             println!("t={:.3} dt={:.2e} it={} itv={} err={:.4}% max={:.3}% div={:.4}% vmax={:.3} ke={:.3e} clamp={} nan={} front={:?} nb={:.2}",

@@ -7,14 +7,16 @@
 //! next fluid rows would be). Two layers cover the kernel support h = 2d of any fluid particle
 //! that has not already crossed into the wall.
 //!
-//! Volume. Akinci's `Ψ_b = 1 / Σ_k W_bk` over boundary neighbours measures how densely the
+//! Volume. Tank walls continue the fluid lattice exactly, so their particles simply take the
+//! fluid particles' volume (scaled by their area when the tank is not a whole number of
+//! spacings): fluid at rest then reads ρ0 everywhere, corners included. Obstacles and drawn
+//! walls do not line up with the fluid, and use Akinci's estimate:  `Ψ_b = 1 / Σ_k W_bk` over boundary neighbours measures how densely the
 //! wall is sampled, but a wall two layers thick lacks the third (fluid-side) row of a full
 //! neighbourhood, so the plain formula overestimates the volume of a lattice wall by the ratio
 //! of a full lattice sum to a two-row sum (≈ 1.19 for the cubic spline at h = 2d), and fluid
 //! beside a wall would start 3 % too dense. We multiply by γ = (two-row sum)/(full sum), computed
-//! from the kernel, so that a straight wall reads exactly like the fluid it continues and
-//! water beside it starts at ρ0; irregular samplings (polylines, corners) keep Akinci's
-//! adaptivity.
+//! from the kernel, so that a straight wall reads like the fluid it continues; irregular
+//! samplings keep Akinci's adaptivity.
 
 use glam::Vec2;
 
@@ -39,6 +41,10 @@ pub struct Body {
 pub struct BoundarySamples {
     pub positions: Vec<Vec2>,
     pub bodies: Vec<BodyId>,
+    /// The particle's area when it is part of a lattice that continues the fluid's (the tank
+    /// walls): such a particle takes the fluid particles' own volume scaled by its area, which
+    /// leaves fluid at rest exactly at ρ0 even in the corners. `None`: Akinci's estimate.
+    pub lattice_area: Vec<Option<f32>>,
 }
 
 impl BoundarySamples {
@@ -57,6 +63,7 @@ impl BoundarySamples {
                 let p = Vec2::new(lo.x + (i as f32 + 0.5) * dx, lo.y + (j as f32 + 0.5) * dy);
                 self.positions.push(p);
                 self.bodies.push(body);
+                self.lattice_area.push(Some(dx * dy));
             }
         }
     }
@@ -76,6 +83,7 @@ impl BoundarySamples {
                         lo.y + (j as f32 + 0.5) * dy,
                     ));
                     self.bodies.push(body);
+                    self.lattice_area.push(None);
                 }
             }
         }
@@ -99,6 +107,7 @@ impl BoundarySamples {
                 for side in [-0.5f32, 0.5] {
                     self.positions.push(c + n * side * d);
                     self.bodies.push(body);
+                    self.lattice_area.push(None);
                 }
             }
         }
@@ -124,16 +133,22 @@ pub fn wall_volume_correction(kernel: &CubicSpline, d: f32) -> f32 {
     (two_rows / full) as f32
 }
 
-/// Akinci volumes `Ψ_b = γ / Σ_k W_bk` of boundary particles already sorted in `grid`.
-pub fn volumes(grid: &Grid, kernel: &CubicSpline, gamma: f32, out: &mut Vec<f32>) {
+/// Akinci volumes `Ψ_b = γ / Σ_k W_bk` of boundary particles already sorted in `grid`, for
+/// the particles whose `volume` entry is not already positive (lattice walls come with theirs).
+pub fn volumes(grid: &Grid, kernel: &CubicSpline, gamma: f32, volume: &mut [f32]) {
     use rayon::prelude::*;
     let pts = grid.sorted_points();
-    out.resize(pts.len(), 0.0);
-    out.par_iter_mut().zip(pts.par_iter()).for_each(|(v, &p)| {
-        let mut sum = 0.0f32;
-        grid.for_each_near(p, |_, r| sum += kernel.w(r.length()));
-        *v = gamma / sum.max(kernel.w_zero());
-    });
+    volume
+        .par_iter_mut()
+        .zip(pts.par_iter())
+        .for_each(|(v, &p)| {
+            if *v > 0.0 {
+                return;
+            }
+            let mut sum = 0.0f32;
+            grid.for_each_near(p, |_, r| sum += kernel.w(r.length()));
+            *v = gamma / sum.max(kernel.w_zero());
+        });
 }
 
 #[cfg(test)]
@@ -157,7 +172,7 @@ mod tests {
         s.add_tank(Vec2::ZERO, Vec2::new(2.0, 1.0), d, 0);
         let mut grid = Grid::new(k.support());
         grid.build(&s.positions);
-        let mut vol = Vec::new();
+        let mut vol = vec![0.0; s.positions.len()];
         volumes(&grid, &k, wall_volume_correction(&k, d), &mut vol);
         // A wall particle in the middle of the floor: the same volume as a fluid particle.
         let lattice_sum = 1.0 / (k.w_zero() + 4.0 * k.w(d) + 4.0 * k.w(d * 2f32.sqrt()));

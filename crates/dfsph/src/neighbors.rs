@@ -103,7 +103,6 @@ impl Grid {
     pub fn build(&mut self, points: &[Vec2]) -> &[u32] {
         let n = points.len();
         let (lo, hi) = bounds(points);
-        self.origin = lo;
         let extent = hi - lo;
         let nx = (extent.x * self.inv_cell).floor() as i64 + 1;
         let ny = (extent.y * self.inv_cell).floor() as i64 + 1;
@@ -111,10 +110,13 @@ impl Grid {
         let limit = (4 * n).max(4096) as f64;
         if n == 0 || dense_cells <= limit {
             self.hashed = false;
+            self.origin = lo;
             self.dims = [nx.max(1), ny.max(1)];
             self.key_count = (self.dims[0] * self.dims[1]) as usize;
         } else {
             self.hashed = true;
+            // Absolute cells: no large origin offset to lose precision against.
+            self.origin = Vec2::ZERO;
             self.dims = [nx, ny];
             self.key_count = (2 * n).next_power_of_two();
         }
@@ -161,9 +163,12 @@ impl Grid {
 
     #[inline]
     fn cell_of(&self, p: Vec2) -> [i64; 2] {
-        let c = (p - self.origin) * self.inv_cell;
+        // In f64: far from the origin, an f32 product would misplace points by whole cells.
         // `as` saturates, so points at any distance get a (possibly out-of-grid) cell.
-        [c.x.floor() as i64, c.y.floor() as i64]
+        let inv = self.inv_cell as f64;
+        let cx = ((p.x as f64 - self.origin.x as f64) * inv).floor() as i64;
+        let cy = ((p.y as f64 - self.origin.y as f64) * inv).floor() as i64;
+        [cx, cy]
     }
 
     /// Key of a point the grid was built from (always inside the grid).

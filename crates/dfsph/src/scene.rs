@@ -117,7 +117,8 @@ pub struct TimeStepParams {
     pub cfl: f64,
     /// Smallest time step, seconds.
     pub min: f64,
-    /// Largest time step, seconds.
+    /// Largest time step, seconds. The default 1 ms is a stability cap: at 5 ms the hydrostatic
+    /// tank at r = 1 cm goes unstable.
     pub max: f64,
 }
 
@@ -181,7 +182,7 @@ impl Default for TimeStepParams {
         Self {
             cfl: 0.4,
             min: 1.0e-5,
-            max: 5.0e-3,
+            max: 1.0e-3,
         }
     }
 }
@@ -224,15 +225,32 @@ impl Scene {
                     .into(),
             ));
         }
+        if !text.trim_start().starts_with('{') {
+            let value: serde_json::Value = serde_json::from_str(text)
+                .map_err(|e| SceneError::Parse(format!("not valid JSON: {e}")))?;
+            let kind = match value {
+                serde_json::Value::Array(_) => "an array",
+                serde_json::Value::String(_) => "a string",
+                serde_json::Value::Number(_) => "a number",
+                serde_json::Value::Bool(_) => "a boolean",
+                _ => "null",
+            };
+            return Err(SceneError::Parse(format!(
+                "the scene must be a JSON object {{...}}, got {kind}"
+            )));
+        }
         let de = &mut serde_json::Deserializer::from_str(text);
-        let scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
+        let scene: Scene = serde_path_to_error::deserialize(&mut *de).map_err(|e| {
             let path = e.path().to_string();
             let inner = e.into_inner();
-            if path.is_empty() || path == "." {
+            if path.is_empty() || path == "." || path == "?" {
                 SceneError::Parse(inner.to_string())
             } else {
                 SceneError::Parse(format!("`{path}`: {inner}"))
             }
+        })?;
+        de.end().map_err(|e| {
+            SceneError::Parse(format!("unexpected text after the scene object: {e}"))
         })?;
         scene.validate()?;
         Ok(scene)
@@ -296,6 +314,12 @@ impl Scene {
         positive("particle_radius", self.particle_radius)?;
         positive("rest_density", self.rest_density)?;
         point("gravity", self.gravity)?;
+        if self.gravity[0].hypot(self.gravity[1]) > 1000.0 {
+            return Err(invalid(
+                "gravity",
+                "must be at most 1000 m/s² in magnitude (about 100 g)",
+            ));
+        }
         point("tank.min", self.tank.min)?;
         point("tank.max", self.tank.max)?;
         for axis in 0..2 {
@@ -634,7 +658,7 @@ mod tests {
         let cases: &[(&str, &str)] = &[
             ("", "empty"),
             ("   \n", "empty"),
-            ("[1, 2]", "expected struct Scene"),
+            ("[1, 2]", "must be a JSON object"),
             ("{\"particle_radius\": 0.01", "EOF"),
             ("{\"particle_radius\": -0.01}", "particle_radius"),
             ("{\"particle_radius\": 0}", "particle_radius"),
@@ -679,6 +703,7 @@ mod tests {
                 "viscosity.kinematic",
             ),
             ("{\"gravity\": [0]}", "gravity"),
+            ("{\"gravity\": [0, -1e20]}", "gravity"),
             (
                 "{\"obstacles\": [{\"type\": \"polyline\", \"points\": [[1, 1]]}]}",
                 "obstacles[0].points",
@@ -701,8 +726,10 @@ mod tests {
         // JSON has no NaN literal; a huge exponent overflows to infinity in serde_json.
         let msg = err("{\"gravity\": [0, -1e400]}");
         assert!(msg.contains("gravity"), "{msg}");
-        let mut s = Scene::default();
-        s.gravity = [f64::NAN, -9.81];
+        let s = Scene {
+            gravity: [f64::NAN, -9.81],
+            ..Scene::default()
+        };
         assert!(s.validate().unwrap_err().to_string().contains("gravity[0]"));
     }
 

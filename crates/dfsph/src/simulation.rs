@@ -176,12 +176,21 @@ impl Simulation {
     }
 
     pub(crate) fn add_boundary_samples(&mut self, samples: BoundarySamples) {
-        for (p, b) in samples.positions.into_iter().zip(samples.bodies) {
+        let cell = self.spacing * self.spacing;
+        for ((p, b), area) in samples
+            .positions
+            .into_iter()
+            .zip(samples.bodies)
+            .zip(samples.lattice_area)
+        {
             self.boundary.position.push(p);
             self.boundary
                 .velocity
                 .push(self.bodies[b as usize].velocity);
-            self.boundary.volume.push(0.0);
+            // Lattice walls carry their volume; 0 asks for Akinci's estimate.
+            self.boundary
+                .volume
+                .push(area.map_or(0.0, |a| self.volume * a / cell));
             self.boundary.body.push(b);
         }
         self.boundary_changed = true;
@@ -427,14 +436,15 @@ impl Simulation {
         )
     }
 
-    /// Last-resort containment: a particle outside the tank interior is put back inside (its
-    /// outward velocity removed) and counted, and a non-finite particle is reset to rest at
-    /// the tank centre and counted. Both counts should stay zero.
+    /// Last-resort containment: a particle whose centre has crossed the centre line of the
+    /// tank's first boundary layer (d/2 outside the interior) has gone through the wall; it is
+    /// put back on the interior's edge, its outward velocity removed, and counted. A
+    /// non-finite particle is reset to rest at the tank centre and counted. Both counts
+    /// should stay zero.
     fn enforce_tank(&mut self) -> (u32, u32) {
         let (lo, hi) = self.tank_interior();
-        let margin = 0.25 * self.spacing;
-        let inner_lo = lo + Vec2::splat(margin);
-        let inner_hi = hi - Vec2::splat(margin);
+        let wall = Vec2::splat(0.5 * self.spacing);
+        let (outer_lo, outer_hi) = (lo - wall, hi + wall);
         let centre = 0.5 * (lo + hi);
         let wall_v = self.bodies[0].velocity;
         self.fluid
@@ -447,14 +457,15 @@ impl Simulation {
                     *v = Vec2::ZERO;
                     return (0u32, 1u32);
                 }
-                if x.x >= lo.x && x.x <= hi.x && x.y >= lo.y && x.y <= hi.y {
+                if x.x >= outer_lo.x && x.x <= outer_hi.x && x.y >= outer_lo.y && x.y <= outer_hi.y
+                {
                     return (0, 0);
                 }
-                *x = x.clamp(inner_lo, inner_hi);
-                if (x.x <= inner_lo.x && v.x < wall_v.x) || (x.x >= inner_hi.x && v.x > wall_v.x) {
+                *x = x.clamp(lo, hi);
+                if (x.x <= lo.x && v.x < wall_v.x) || (x.x >= hi.x && v.x > wall_v.x) {
                     v.x = wall_v.x;
                 }
-                if (x.y <= inner_lo.y && v.y < wall_v.y) || (x.y >= inner_hi.y && v.y > wall_v.y) {
+                if (x.y <= lo.y && v.y < wall_v.y) || (x.y >= hi.y && v.y > wall_v.y) {
                     v.y = wall_v.y;
                 }
                 (1, 0)

@@ -6,17 +6,11 @@
 //!
 //! * density (eq. 2 of the 2017 paper, with Akinci boundary terms):
 //!   `s_i = Σ_j V_j W_ij + Σ_b Ψ_b W_ib` (the sum over j includes i itself);
+//! * factor (eq. 13, over ρ_i): `a_i = 1 / (|Σ_j V_j ∇W_ij + Σ_b Ψ_b ∇W_ib|² + Σ_j |V_j ∇W_ij|²)`;
 //! * a pressure-like field κ (m²/s) changes velocities by
-//!   `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − Σ_b Ψ_b (κ_i + κ_i) ∇W_ib` (eq. 8–9); κ = Δt·p/ρ0
-//!   for a pressure p. The boundary term mirrors the particle's own pressure onto the wall
-//!   (p_b = p_i) inside the same symmetric formula as fluid pairs. Akinci's single term
-//!   (p_b = 0) cannot hold a resting fluid up: on a lattice beside a wall the fluid and wall
-//!   gradient sums cancel, the particle's own pressure exerts no force on it, and the bottom
-//!   row sinks into the wall until the lattice is distorted.
-//! * factor (eq. 13, over ρ_i, re-derived for the mirrored wall term): with
-//!   `g_f = Σ_j V_j ∇W_ij` and `g_b = Σ_b Ψ_b ∇W_ib`,
-//!   `a_i = 1 / ((g_f + 2g_b)·(g_f + g_b) + Σ_j |V_j ∇W_ij|²)`, the inverse of the response
-//!   of `s_i` to the particle's own κ_i.
+//!   `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − Σ_b Ψ_b κ_i ∇W_ib` (eq. 8–9, with the boundary term
+//!   of Akinci et al. 2012, eq. 10: the wall feels the particle's own pressure once);
+//!   κ = Δt·p/ρ0 for a pressure p.
 //!
 //! The density solve drives the predicted relative density `s*_i = s_i + Δt·Dρ_i/Dt/ρ0` to 1
 //! with `Δκ_i = max(s*_i − 1, 0)·a_i/Δt` (only compression is corrected: the free surface
@@ -94,14 +88,13 @@ pub fn density_and_factor(
         .for_each(|(i, (s, a))| {
             let xi = pos[i];
             let mut density = self_w;
-            let mut grad_fluid = Vec2::ZERO;
-            let mut grad_wall = Vec2::ZERO;
+            let mut grad_sum = Vec2::ZERO;
             let mut grad_sq = 0.0f32;
             let r = fluid_lists.range(i);
             for (&j, &g) in fluid_lists.indices[r.clone()].iter().zip(&fluid_grad[r]) {
                 density += volume * kernel.w((xi - pos[j as usize]).length());
                 let vg = volume * g;
-                grad_fluid += vg;
+                grad_sum += vg;
                 grad_sq += vg.length_squared();
             }
             let r = boundary_lists.range(i);
@@ -111,11 +104,10 @@ pub fn density_and_factor(
             {
                 let vb = bvol[b as usize];
                 density += vb * kernel.w((xi - bpos[b as usize]).length());
-                grad_wall += vb * g;
+                grad_sum += vb * g;
             }
             *s = density;
-            let own = (grad_fluid + 2.0 * grad_wall).dot(grad_fluid + grad_wall);
-            let denom = own.max(0.0) + grad_sq;
+            let denom = grad_sum.length_squared() + grad_sq;
             *a = if denom > eps { 1.0 / denom } else { 0.0 };
         });
 }
@@ -161,7 +153,7 @@ fn density_rate(
     rate
 }
 
-/// Apply `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − 2κ_i Σ_b Ψ_b ∇W_ib` to every fluid velocity.
+/// Apply `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − κ_i Σ_b Ψ_b ∇W_ib` to every fluid velocity.
 pub fn apply_pressure(
     volume: f32,
     kappa: &[f32],
@@ -186,7 +178,7 @@ pub fn apply_pressure(
             {
                 db += boundary.volume[b as usize] * g;
             }
-            dv += 2.0 * ki * db;
+            dv += ki * db;
         }
         *v -= dv;
     });
@@ -367,8 +359,8 @@ pub fn density_solve(
 
 /// WCSPH: pressure from the Tait equation `p = B·((ρ/ρ0)^γ − 1)` (clamped at 0 so the free
 /// surface is not pulled together) and the symmetric pressure acceleration
-/// `a_i = −Σ_j m_j (p_i/ρ_i² + p_j/ρ_j²) ∇W_ij − Σ_b ρ0 Ψ_b 2p_i/ρ_i² ∇W_ib` (mirrored wall
-/// pressure, as in the DFSPH solves), applied to the
+/// `a_i = −Σ_j m_j (p_i/ρ_i² + p_j/ρ_j²) ∇W_ij − Σ_b ρ0 Ψ_b p_i/ρ_i² ∇W_ib` (Akinci et al.
+/// 2012), applied to the
 /// velocities over `dt`. Returns the average and maximum compression in percent.
 #[allow(clippy::too_many_arguments)]
 pub fn wcsph_pressure(

@@ -1,0 +1,140 @@
+//! `dfsph2d run`: step a scene headless to a given simulated time, writing statistics every
+//! step and snapshots on a schedule.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::Result;
+use dfsph::{Scene, Simulation};
+use dfsph_io::StatsCsvWriter;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::cli::Format;
+use crate::output::FrameWriter;
+use crate::schedule::{reached, SnapshotSchedule};
+
+/// A validated run: everything was checked before this is built.
+pub struct RunPlan {
+    pub scene: Scene,
+    /// Simulated end time, s (> 0).
+    pub until: f64,
+    /// Simulated time between snapshots, s (> 0).
+    pub every: f64,
+    pub formats: Vec<Format>,
+    pub out: PathBuf,
+    pub png_width: u32,
+}
+
+/// What happened.
+#[derive(Clone, Debug)]
+pub struct RunOutcome {
+    pub scene_name: String,
+    pub steps: u64,
+    /// Simulated time reached, s.
+    pub time: f64,
+    pub wall: Duration,
+    pub frames: usize,
+    pub n_fluid: usize,
+    pub n_boundary: usize,
+    /// Particles put back into the tank over the run (wall leaks).
+    pub clamped: u64,
+    /// Particles reset after becoming NaN/infinite over the run.
+    pub non_finite: u64,
+    /// The first step that produced non-finite values, and its time; the run stopped there.
+    pub broke_at: Option<(u64, f64)>,
+}
+
+impl RunOutcome {
+    /// The one-line summary printed at the end.
+    pub fn summary(&self, out: &std::path::Path) -> String {
+        let wall = self.wall.as_secs_f64();
+        format!(
+            "{}: {} steps to t = {:.4} s in {:.2} s wall ({:.1} steps/s); {} fluid + {} boundary \
+             particles; {} frames in {}; {} clamped, {} non-finite",
+            self.scene_name,
+            self.steps,
+            self.time,
+            wall,
+            self.steps as f64 / wall.max(1e-9),
+            self.n_fluid,
+            self.n_boundary,
+            self.frames,
+            out.display(),
+            self.clamped,
+            self.non_finite,
+        )
+    }
+}
+
+/// Run `plan` on `sim` (built from `plan.scene`). The output directory must exist already
+/// (see [`crate::output::create_output_dir`]). Stops early at the first step that produced
+/// non-finite values, with everything up to and including that step written.
+pub fn execute(plan: &RunPlan, mut sim: Simulation) -> Result<RunOutcome> {
+    let started = Instant::now();
+    let progress = progress_bar();
+    dfsph_io::write_atomic(plan.out.join("scene.json"), |w| {
+        w.write_all(plan.scene.to_json().as_bytes())?;
+        w.write_all(b"\n")
+    })?;
+    let mut stats = StatsCsvWriter::create(plan.out.join("stats.csv"))?;
+    let mut frames = FrameWriter::new(&plan.out, &plan.formats, &plan.scene, plan.png_width);
+    let mut schedule = SnapshotSchedule::new(plan.every);
+    frames.write(&sim)?;
+
+    let mut broke_at = None;
+    loop {
+        let s = *sim.step();
+        stats.push(&s)?;
+        if s.non_finite > 0 {
+            broke_at = Some((s.step, s.time));
+        }
+        if schedule.due(s.time, s.dt) {
+            frames.write(&sim)?;
+        }
+        progress.set_position(((s.time / plan.until).min(1.0) * 1000.0) as u64);
+        progress.set_message(format!(
+            "t = {:.3}/{} s, step {}, {} frames",
+            s.time,
+            plan.until,
+            s.step,
+            frames.count()
+        ));
+        if broke_at.is_some() || reached(s.time, s.dt, plan.until) {
+            break;
+        }
+    }
+    frames.write(&sim)?;
+    frames.finish()?;
+    stats.finish()?;
+    progress.finish_and_clear();
+
+    let last = sim.stats();
+    Ok(RunOutcome {
+        scene_name: plan.scene.name.clone(),
+        steps: sim.step_count(),
+        time: sim.time(),
+        wall: started.elapsed(),
+        frames: frames.count(),
+        n_fluid: last.n_fluid,
+        n_boundary: last.n_boundary,
+        clamped: sim.total_clamped(),
+        non_finite: sim.total_non_finite(),
+        broke_at,
+    })
+}
+
+/// A progress bar on stderr when it is a terminal; hidden otherwise (logs, pipes, tests).
+fn progress_bar() -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(1000);
+    if let Ok(style) =
+        ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:30}] {msg} (eta {eta})")
+    {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.enable_steady_tick(Duration::from_millis(200));
+    bar
+}

@@ -1,0 +1,158 @@
+//! Resolving a SCENE argument: a built-in scene name, or the path of a JSON scene file.
+//!
+//! Every failure is a one-line message that names the file and the problem (for a scene that
+//! does not validate, the offending key, from [`dfsph::SceneError`]).
+
+use std::path::Path;
+
+use dfsph::{scene, Scene};
+
+/// Scene files larger than this are refused unread: a scene is a few hundred bytes.
+const MAX_SCENE_BYTES: u64 = 16 * 1024 * 1024;
+
+/// The scene named by `arg`. A built-in name wins over a file of the same name (write
+/// `./dam-break` for the file).
+pub fn load_scene(arg: &str) -> Result<Scene, String> {
+    if let Some(scene) = scene::builtin(arg) {
+        return Ok(scene);
+    }
+    let path = Path::new(arg);
+    let shown = path.display();
+    let meta = match std::fs::metadata(path) {
+        Ok(meta) => meta,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(if looks_like_a_name(arg) {
+                format!(
+                    "unknown scene `{arg}`: not a built-in scene ({}) and no such file",
+                    builtin_names()
+                )
+            } else {
+                format!("scene file `{shown}` does not exist")
+            });
+        }
+        Err(e) => return Err(format!("cannot read scene file `{shown}`: {e}")),
+    };
+    if meta.is_dir() {
+        return Err(format!(
+            "`{shown}` is a directory, not a scene file (expected a .json file or one of: {})",
+            builtin_names()
+        ));
+    }
+    if !meta.is_file() {
+        return Err(format!("`{shown}` is not a regular file"));
+    }
+    if meta.len() > MAX_SCENE_BYTES {
+        return Err(format!(
+            "scene file `{shown}` is {} bytes, too large to be a scene (at most {MAX_SCENE_BYTES})",
+            meta.len()
+        ));
+    }
+    let bytes =
+        std::fs::read(path).map_err(|e| format!("cannot read scene file `{shown}`: {e}"))?;
+    let text = String::from_utf8(bytes)
+        .map_err(|_| format!("scene file `{shown}` is not UTF-8 text (expected a JSON scene)"))?;
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    let mut scene = Scene::from_json(text)
+        .map_err(|e| format!("scene file `{shown}`: {}", one_line(&e.to_string())))?;
+    name_after_file(&mut scene, text, path);
+    Ok(scene)
+}
+
+/// A scene file that does not set `name` / `description` would inherit the dam break's;
+/// name it after the file instead, so outputs and the viewer say what actually ran.
+fn name_after_file(scene: &mut Scene, text: &str, path: &Path) {
+    let Ok(serde_json::Value::Object(keys)) = serde_json::from_str::<serde_json::Value>(text)
+    else {
+        return;
+    };
+    if !keys.contains_key("name") {
+        if let Some(stem) = path.file_stem() {
+            scene.name = stem.to_string_lossy().into_owned();
+        }
+    }
+    if !keys.contains_key("description") {
+        scene.description = format!("scene file {}", path.display());
+    }
+}
+
+/// `dam-break, hydrostatic, ...`
+pub fn builtin_names() -> String {
+    scene::BUILTIN_SCENES
+        .iter()
+        .map(|b| b.name)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// A bare word such as `dambreak` (no directory, no extension) was meant as a scene name.
+fn looks_like_a_name(arg: &str) -> bool {
+    !arg.contains(['/', '\\', '.'])
+}
+
+/// Messages are printed on one line.
+pub fn one_line(s: &str) -> String {
+    s.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &tempfile::TempDir, name: &str, content: &[u8]) -> String {
+        let path = dir.path().join(name);
+        std::fs::write(&path, content).unwrap();
+        path.to_string_lossy().into_owned()
+    }
+
+    #[test]
+    fn builtin_names_resolve() {
+        for b in scene::BUILTIN_SCENES {
+            assert_eq!(load_scene(b.name).unwrap(), b.scene());
+        }
+    }
+
+    #[test]
+    fn a_file_is_read_and_named_after_itself() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = write(&dir, "coarse.json", br#"{"particle_radius": 0.05}"#);
+        let scene = load_scene(&path).unwrap();
+        assert_eq!(scene.particle_radius, 0.05);
+        assert_eq!(scene.name, "coarse");
+        let path = write(
+            &dir,
+            "named.json",
+            "\u{feff}{\"name\": \"mine\"}".as_bytes(),
+        );
+        assert_eq!(load_scene(&path).unwrap().name, "mine");
+    }
+
+    #[test]
+    fn errors_name_the_file_and_problem() {
+        let dir = tempfile::tempdir().unwrap();
+        let cases: Vec<(String, &str)> = vec![
+            ("dambreak".into(), "unknown scene `dambreak`"),
+            ("no/such.json".into(), "`no/such.json` does not exist"),
+            (dir.path().to_string_lossy().into_owned(), "is a directory"),
+            (
+                write(&dir, "bin.json", &[0xff, 0xfe, 0x00, 0x9f]),
+                "not UTF-8",
+            ),
+            (write(&dir, "empty.json", b""), "empty"),
+            (write(&dir, "key.json", br#"{"radius": 1}"#), "radius"),
+            (
+                write(&dir, "neg.json", br#"{"particle_radius": -1}"#),
+                "particle_radius",
+            ),
+        ];
+        for (arg, needle) in cases {
+            let msg = load_scene(&arg).unwrap_err();
+            assert!(msg.contains(needle), "{arg}: {msg}");
+            assert!(!msg.contains('\n'), "{msg}");
+        }
+    }
+
+    #[test]
+    fn one_line_collapses_whitespace() {
+        assert_eq!(one_line("a\n  b\tc "), "a b c");
+    }
+}

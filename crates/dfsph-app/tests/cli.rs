@@ -1,0 +1,449 @@
+//! The `dfsph2d` command as a user runs it: listing scenes, headless runs and every output
+//! file, and the errors for bad scenes and arguments (exit code 2, one line, nothing
+//! written). Scenes are coarse and runs short, so the whole file takes a second or two.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use vtkio::model::{Attribute, DataSet, Piece};
+
+const BIN: &str = env!("CARGO_BIN_EXE_dfsph2d");
+
+/// A 200-particle dam break.
+const COARSE: &str = r#"{"particle_radius": 0.05}"#;
+
+fn dfsph2d(args: &[&str]) -> Output {
+    Command::new(BIN)
+        .args(args)
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("dfsph2d runs")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+fn write_scene(dir: &Path, name: &str, content: &[u8]) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, content).unwrap();
+    path
+}
+
+fn csv_rows(path: &Path) -> Vec<Vec<String>> {
+    std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .lines()
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect()
+}
+
+#[test]
+fn scenes_lists_the_builtin_scenes_one_per_line() {
+    let out = dfsph2d(&["scenes"]);
+    assert!(out.status.success());
+    let stdout = text(&out.stdout);
+    let names: Vec<&str> = stdout
+        .lines()
+        .map(|l| l.split_whitespace().next().unwrap())
+        .collect();
+    for name in ["dam-break", "hydrostatic", "double-dam-break", "drop"] {
+        assert!(names.contains(&name), "{name} missing from:\n{stdout}");
+    }
+    for line in stdout.lines() {
+        let description = line.split_once(' ').map(|(_, d)| d.trim()).unwrap_or("");
+        assert!(description.len() > 10, "no description: {line:?}");
+    }
+}
+
+#[test]
+fn run_writes_every_output_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = write_scene(tmp.path(), "coarse.json", COARSE.as_bytes());
+    let out_dir = tmp.path().join("out");
+    let out = dfsph2d(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--until",
+        "0.05",
+        "--every",
+        "0.02",
+        "--format",
+        "csv,vtk,png",
+        "--png-width",
+        "320",
+        "--threads",
+        "2",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", text(&out.stderr));
+    // No progress bar when stderr is not a terminal; a one-line summary on stdout.
+    assert_eq!(text(&out.stderr), "");
+    assert_eq!(stdout.lines().count(), 1, "{stdout}");
+    assert!(
+        stdout.contains("steps") && stdout.contains("0 non-finite"),
+        "{stdout}"
+    );
+
+    // scene.json: the resolved scene, every key present, and it loads back.
+    let resolved = std::fs::read_to_string(out_dir.join("scene.json")).unwrap();
+    let scene = dfsph::Scene::from_json(&resolved).unwrap();
+    assert_eq!(scene.particle_radius, 0.05);
+    assert_eq!(scene.name, "coarse");
+    for key in [
+        "solver",
+        "time_step",
+        "viscosity",
+        "max_particles",
+        "tank",
+        "fluid",
+    ] {
+        assert!(
+            resolved.contains(&format!("\"{key}\"")),
+            "{key} not in scene.json"
+        );
+    }
+
+    // stats.csv: the contract header, one row per step, steps 1..n, ending at --until.
+    let stats = csv_rows(&out_dir.join("stats.csv"));
+    assert_eq!(
+        stats[0].join(","),
+        "step,time,dt,n_fluid,density_iterations,divergence_iterations,avg_density_error_pct,\
+         max_density_error_pct,max_speed,kinetic_energy,divergence_error_pct,clamped,non_finite,\
+         avg_neighbors,n_boundary"
+    );
+    let rows = &stats[1..];
+    assert!(
+        rows.len() >= 10,
+        "0.05 s at dt <= 5 ms is at least 10 steps"
+    );
+    for (k, row) in rows.iter().enumerate() {
+        assert_eq!(row.len(), stats[0].len());
+        assert_eq!(row[0], (k + 1).to_string());
+        assert_eq!(row[3], "200");
+    }
+    let last_time: f64 = rows.last().unwrap()[1].parse().unwrap();
+    assert!((0.0499..0.056).contains(&last_time), "{last_time}");
+    assert!(
+        stdout.contains(&format!("{} steps", rows.len())),
+        "{stdout}"
+    );
+
+    // index.csv: frames 0.. with their times, snapshots at t = 0, 0.02, 0.04 and the end.
+    let particles = out_dir.join("particles");
+    let index = csv_rows(&particles.join("index.csv"));
+    assert_eq!(index[0], ["frame", "time", "file"]);
+    let frames = &index[1..];
+    assert_eq!(frames.len(), 4, "{frames:?}");
+    let times: Vec<f64> = frames.iter().map(|f| f[1].parse().unwrap()).collect();
+    for (got, want) in times.iter().zip([0.0, 0.02, 0.04, last_time]) {
+        assert!((got - want).abs() < 1e-6, "{times:?}");
+    }
+
+    let mut expected_files = vec!["index.csv".to_string(), "particles.pvd".to_string()];
+    for (k, frame) in frames.iter().enumerate() {
+        let stem = format!("{k:05}");
+        assert_eq!(frame[0], k.to_string());
+        assert_eq!(frame[2], format!("{stem}.csv"));
+
+        // The CSV snapshot.
+        let csv = csv_rows(&particles.join(&frame[2]));
+        assert_eq!(csv[0], ["x", "y", "vx", "vy", "density", "pressure"]);
+        let n = csv.len() - 1;
+        assert_eq!(n, 200);
+        for row in &csv[1..] {
+            let v: Vec<f32> = row.iter().map(|x| x.parse().unwrap()).collect();
+            assert!(v.iter().all(|x| x.is_finite()), "{row:?}");
+            assert!((-0.01..=4.01).contains(&v[0]) && (-0.01..=3.01).contains(&v[1]));
+        }
+
+        // The .vtu, read back with vtkio: n vertices with the four point arrays.
+        let vtk = vtkio::Vtk::import(particles.join(format!("{stem}.vtu"))).expect("vtkio reads");
+        let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+            panic!("not an UnstructuredGrid");
+        };
+        let Piece::Inline(piece) = &pieces[0] else {
+            panic!("not an inline piece");
+        };
+        assert_eq!(piece.num_points(), n);
+        assert_eq!(piece.cells.types.len(), n);
+        let points: Vec<f32> = piece.points.clone().cast_into().unwrap();
+        let first: Vec<f32> = csv[1].iter().map(|x| x.parse().unwrap()).collect();
+        assert_eq!(points[0..2], first[0..2], "vtu and csv agree on particle 0");
+        let mut arrays: Vec<(String, usize)> = piece
+            .data
+            .point
+            .iter()
+            .map(|a| match a {
+                Attribute::DataArray(a) => (a.name.clone(), a.data.len()),
+                Attribute::Field { name, .. } => (name.clone(), 0),
+            })
+            .collect();
+        arrays.sort();
+        assert_eq!(
+            arrays,
+            [
+                ("density".to_string(), n),
+                ("id".to_string(), n),
+                ("pressure".to_string(), n),
+                ("velocity".to_string(), 3 * n),
+            ]
+        );
+
+        // The PNG opens, has the asked width and shows coloured (non-grey) water.
+        let png = tiny_skia::Pixmap::load_png(particles.join(format!("{stem}.png")))
+            .expect("the PNG decodes");
+        assert_eq!(png.width(), 320);
+        let coloured = png
+            .pixels()
+            .iter()
+            .filter(|c| c.red().abs_diff(c.blue()) > 40 || c.green().abs_diff(c.blue()) > 40)
+            .count();
+        assert!(coloured > 500, "only {coloured} coloured pixels");
+
+        for ext in ["csv", "vtu", "png"] {
+            expected_files.push(format!("{stem}.{ext}"));
+        }
+    }
+    // Nothing else, in particular no leftover NAME.tmp files.
+    let mut files: Vec<String> = std::fs::read_dir(&particles)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    files.sort();
+    expected_files.sort();
+    assert_eq!(files, expected_files);
+    let mut top: Vec<String> = std::fs::read_dir(&out_dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    top.sort();
+    assert_eq!(top, ["particles", "scene.json", "stats.csv"]);
+
+    // The ParaView collection lists every .vtu with its time.
+    let pvd = std::fs::read_to_string(particles.join("particles.pvd")).unwrap();
+    assert_eq!(pvd.matches("<DataSet ").count(), frames.len());
+    assert!(pvd.contains(r#"file="00003.vtu""#));
+}
+
+#[test]
+fn run_defaults_to_csv_every_50_ms_and_reuses_an_existing_directory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = write_scene(tmp.path(), "coarse.json", COARSE.as_bytes());
+    let out_dir = tmp.path().join("out");
+    let particles = out_dir.join("particles");
+    std::fs::create_dir_all(&particles).unwrap();
+    // Leftovers of an earlier, longer run, and a file of the user's.
+    std::fs::write(particles.join("00009.csv"), "stale").unwrap();
+    std::fs::write(particles.join("00009.png"), "stale").unwrap();
+    std::fs::write(out_dir.join("notes.txt"), "mine").unwrap();
+
+    let out = dfsph2d(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--until",
+        "0.1",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let index = csv_rows(&particles.join("index.csv"));
+    let times: Vec<f64> = index[1..].iter().map(|f| f[1].parse().unwrap()).collect();
+    assert_eq!(times.len(), 3, "t = 0, 0.05, 0.1: {times:?}");
+    assert!((times[1] - 0.05).abs() < 1e-6 && (times[2] - 0.1).abs() < 0.006);
+    assert!(particles.join("00002.csv").exists());
+    assert!(!particles.join("00000.vtu").exists() && !particles.join("00000.png").exists());
+    assert!(!particles.join("00009.csv").exists(), "stale frame kept");
+    assert!(!particles.join("00009.png").exists(), "stale frame kept");
+    assert_eq!(
+        std::fs::read_to_string(out_dir.join("notes.txt")).unwrap(),
+        "mine"
+    );
+}
+
+#[test]
+fn builtin_scene_runs_by_name() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out_dir = tmp.path().join("hydro");
+    let out = dfsph2d(&[
+        "run",
+        "hydrostatic",
+        "--until",
+        "0.001",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(text(&out.stdout).starts_with("hydrostatic: 1 steps"));
+    let scene = std::fs::read_to_string(out_dir.join("scene.json")).unwrap();
+    assert!(scene.contains("\"name\": \"hydrostatic\""));
+    assert_eq!(csv_rows(&out_dir.join("stats.csv")).len(), 2);
+    assert_eq!(
+        csv_rows(&out_dir.join("particles/00000.csv")).len(),
+        1 + 100 * 50
+    );
+}
+
+/// Runs `dfsph2d run SCENE --until 0.05 --out DIR` (plus `extra`), expects exit code 2, one
+/// `error: ` line naming `needle`, and no output directory.
+fn assert_rejected(tmp: &Path, scene: &str, extra: &[&str], needle: &str) {
+    let out_dir = tmp.join("never");
+    let mut args = vec![
+        "run",
+        scene,
+        "--until",
+        "0.05",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let out = dfsph2d(&args);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{scene} {extra:?}: {stderr}");
+    assert!(stderr.starts_with("error: "), "{stderr}");
+    assert!(
+        stderr.contains(needle),
+        "{scene}: {stderr:?} lacks {needle:?}"
+    );
+    assert!(!stderr.contains("panicked") && !stderr.contains("RUST_BACKTRACE"));
+    assert!(
+        !out_dir.exists(),
+        "{scene}: output written despite the error"
+    );
+    assert_eq!(text(&out.stdout), "");
+}
+
+#[test]
+fn malformed_scenes_exit_2_name_the_problem_and_write_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let files: &[(&str, &[u8], &str)] = &[
+        (
+            "unknown-key.json",
+            br#"{"radius": 0.05}"#,
+            "unknown field `radius`",
+        ),
+        (
+            "wrong-type.json",
+            br#"{"particle_radius": "big"}"#,
+            "particle_radius",
+        ),
+        (
+            "negative.json",
+            br#"{"particle_radius": -0.05}"#,
+            "particle_radius",
+        ),
+        (
+            "outside.json",
+            br#"{"particle_radius": 0.05, "fluid": [{"min": [0, 0], "max": [5, 1]}]}"#,
+            "fluid[0].max[0]",
+        ),
+        (
+            "too-many.json",
+            br#"{"particle_radius": 0.05, "max_particles": 100}"#,
+            "max_particles",
+        ),
+        (
+            "truncated.json",
+            br#"{"particle_radius": 0.05"#,
+            "EOF while parsing",
+        ),
+        ("empty.json", b"", "empty"),
+        ("blank.json", b"  \n\t", "empty"),
+        ("array.json", b"[1, 2]", "must be a JSON object"),
+        ("infinite.json", br#"{"gravity": [0, -1e400]}"#, "gravity"),
+        (
+            "binary.json",
+            &[0x89, b'P', b'N', b'G', 0xff, 0x00, 0xfe],
+            "not UTF-8",
+        ),
+        (
+            "method.json",
+            br#"{"solver": {"method": "pbf"}}"#,
+            "solver.method",
+        ),
+        ("cfl.json", br#"{"time_step": {"cfl": 2}}"#, "time_step.cfl"),
+    ];
+    for (name, content, needle) in files {
+        let path = write_scene(dir, name, content);
+        let path = path.to_str().unwrap();
+        assert_rejected(dir, path, &[], needle);
+        // The message names the file too.
+        let out = dfsph2d(&["run", path, "--until", "0.05", "--out", "unused"]);
+        assert!(text(&out.stderr).contains(path));
+    }
+    let subdir = dir.join("a-directory");
+    std::fs::create_dir(&subdir).unwrap();
+    assert_rejected(dir, subdir.to_str().unwrap(), &[], "is a directory");
+    let missing = dir.join("missing.json");
+    assert_rejected(dir, missing.to_str().unwrap(), &[], "does not exist");
+    assert_rejected(dir, "dambreak", &[], "unknown scene `dambreak`");
+    assert!(!Path::new("unused").exists());
+}
+
+#[test]
+fn bad_arguments_exit_2_and_write_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let scene = write_scene(dir, "coarse.json", COARSE.as_bytes());
+    let scene = scene.to_str().unwrap();
+    assert_rejected(dir, scene, &["--until", "0"], "--until");
+    assert_rejected(dir, scene, &["--until=-1"], "--until");
+    assert_rejected(dir, scene, &["--until", "inf"], "--until");
+    assert_rejected(dir, scene, &["--every", "0"], "--every");
+    assert_rejected(dir, scene, &["--every", "soon"], "--every");
+    assert_rejected(dir, scene, &["--format", "csv,gif"], "gif");
+    assert_rejected(dir, scene, &["--threads", "0"], "--threads");
+
+    // --out naming an existing file: refused, the file untouched.
+    let file = dir.join("a-file");
+    std::fs::write(&file, "keep").unwrap();
+    let out = dfsph2d(&[
+        "run",
+        scene,
+        "--until",
+        "0.05",
+        "--out",
+        file.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.starts_with("error: ") && stderr.contains("not a directory"),
+        "{stderr}"
+    );
+    assert_eq!(stderr.lines().count(), 1);
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep");
+}
+
+#[test]
+fn scene_errors_are_one_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = write_scene(
+        tmp.path(),
+        "multi.json",
+        b"{\n  \"tank\": {\"min\": [0, 0]}\n}\n",
+    );
+    let out = dfsph2d(&["run", path.to_str().unwrap(), "--until", "1", "--out", "x"]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = text(&out.stderr);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("tank"), "{stderr}");
+}
+
+#[test]
+fn view_rejects_a_bad_scene_before_opening_a_window() {
+    let out = dfsph2d(&["view", "no-such-scene.json"]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.starts_with("error: ") && stderr.contains("does not exist"),
+        "{stderr}"
+    );
+    let out = dfsph2d(&["view", "drop", "--exit-after=-1"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("--exit-after"));
+}

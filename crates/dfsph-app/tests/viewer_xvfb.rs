@@ -1,0 +1,368 @@
+//! The viewer driven as a user would drive it, under a virtual X display.
+//!
+//! Needs `Xvfb` and `xdotool` (Debian: `xvfb xdotool libgl1-mesa-dri libegl1`); without them
+//! the test prints a note and passes. With them it:
+//!
+//! 1. starts `Xvfb` on a free display number (killed again by a guard, even on failure);
+//! 2. runs `dfsph2d view hydrostatic --exit-after 8 --save-on-exit DIR` with Mesa's software
+//!    OpenGL, finds the window by its title, focuses it (there is no window manager: keys
+//!    are dropped without focus), holds `d` for 2 s and then `a` for 2 s;
+//! 3. runs a second viewer the same way and leaves it alone;
+//! 4. checks both runs' `particles.csv`, `session.json` and `screenshot.png`.
+//!
+//! The scene is the hydrostatic tank rather than the dam break: untouched, its water stays at
+//! rest whatever the frame rate, so "the stirred water moves and the untouched water does not"
+//! holds however much simulated time each run managed (software rendering on a busy machine
+//! can slow simulated time several-fold). A dam break is in motion in both runs, and how far
+//! it has got depends on the machine's speed.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::thread::sleep;
+use std::time::{Duration, Instant};
+
+const SCENE: &str = "hydrostatic";
+const EXIT_AFTER_S: u64 = 8;
+
+/// Kills a child process when dropped (a viewer that outlived the test).
+struct KillOnDrop(Child, &'static str);
+
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        if let Ok(None) = self.0.try_wait() {
+            eprintln!("killing {}", self.1);
+            let _ = self.0.kill();
+        }
+        let _ = self.0.wait();
+    }
+}
+
+/// Whether an executable is on PATH.
+fn on_path(name: &str) -> bool {
+    std::env::var_os("PATH")
+        .map(|p| std::env::split_paths(&p).any(|d| d.join(name).is_file()))
+        .unwrap_or(false)
+}
+
+/// A display number with no X server or lock file, starting from a pid-dependent number so
+/// concurrent test runs do not collide.
+fn free_display() -> u32 {
+    let start = 100 + std::process::id() % 300;
+    (start..start + 300)
+        .find(|n| {
+            !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
+                && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
+        })
+        .expect("no free X display number")
+}
+
+/// A running `Xvfb`, stopped with SIGTERM (so that it removes its socket and lock file) when
+/// dropped, and killed if that does not work.
+struct Xvfb {
+    child: Child,
+    number: u32,
+}
+
+impl Xvfb {
+    fn start() -> Self {
+        let number = free_display();
+        let child = Command::new("Xvfb")
+            .arg(format!(":{number}"))
+            .args(["-screen", "0", "1280x800x24", "-nolisten", "tcp"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("starting Xvfb");
+        let mut xvfb = Xvfb { child, number };
+        let deadline = Instant::now() + Duration::from_secs(20);
+        while !xvfb.socket().exists() {
+            if let Ok(Some(status)) = xvfb.child.try_wait() {
+                panic!("Xvfb :{number} exited at start: {status}");
+            }
+            assert!(Instant::now() < deadline, "Xvfb :{number} did not start");
+            sleep(Duration::from_millis(50));
+        }
+        xvfb
+    }
+
+    fn display(&self) -> String {
+        format!(":{}", self.number)
+    }
+
+    fn socket(&self) -> PathBuf {
+        PathBuf::from(format!("/tmp/.X11-unix/X{}", self.number))
+    }
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status();
+        for _ in 0..50 {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                return;
+            }
+            sleep(Duration::from_millis(50));
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = std::fs::remove_file(self.socket());
+        let _ = std::fs::remove_file(format!("/tmp/.X{}-lock", self.number));
+    }
+}
+
+fn xdotool(display: &str, args: &[&str]) -> String {
+    let out = Command::new("xdotool")
+        .args(args)
+        .env("DISPLAY", display)
+        .output()
+        .expect("running xdotool");
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Start a viewer; with `stir`, hold `d` for 2 s and then `a` for 2 s in its window. Returns
+/// once it has exited.
+fn run_viewer(display: &str, dir: &Path, stir: bool) {
+    let log = std::fs::File::create(dir.with_extension("log")).unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_dfsph2d"))
+        .args(["view", SCENE, "--exit-after", &EXIT_AFTER_S.to_string()])
+        .arg("--save-on-exit")
+        .arg(dir)
+        .env("DISPLAY", display)
+        .env_remove("WAYLAND_DISPLAY")
+        .env("LIBGL_ALWAYS_SOFTWARE", "1")
+        .env("RUST_BACKTRACE", "0")
+        .stdout(log.try_clone().unwrap())
+        .stderr(log)
+        .spawn()
+        .expect("starting dfsph2d view");
+    let mut viewer = KillOnDrop(child, "dfsph2d view");
+
+    if stir {
+        let wid = find_window(display, &mut viewer, dir);
+        for key in ["d", "a"] {
+            focus(display, &wid);
+            xdotool(display, &["keydown", key]);
+            sleep(Duration::from_secs(2));
+            xdotool(display, &["keyup", key]);
+        }
+    }
+
+    let deadline = Instant::now() + Duration::from_secs(EXIT_AFTER_S + 60);
+    let status = loop {
+        if let Some(status) = viewer.0.try_wait().unwrap() {
+            break status;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the viewer did not exit after --exit-after; {}",
+            log_of(dir)
+        );
+        sleep(Duration::from_millis(100));
+    };
+    assert!(
+        status.success(),
+        "dfsph2d view failed: {status}; {}",
+        log_of(dir)
+    );
+}
+
+/// The viewer's window once it is mapped. (`xdotool search --sync` would wait forever for a
+/// viewer that failed to start, so this polls, watching the viewer.)
+fn find_window(display: &str, viewer: &mut KillOnDrop, dir: &Path) -> String {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        let found = xdotool(display, &["search", "--onlyvisible", "--name", "dfsph2d"]);
+        if let Some(w) = found.lines().next() {
+            return w.trim().to_string();
+        }
+        if let Ok(Some(status)) = viewer.0.try_wait() {
+            panic!(
+                "the viewer exited before its window appeared: {status}; {}",
+                log_of(dir)
+            );
+        }
+        assert!(Instant::now() < deadline, "no dfsph2d window appeared");
+        sleep(Duration::from_millis(100));
+    }
+}
+
+/// Give the window the keyboard focus (there is no window manager to do it) and check that
+/// it has it.
+fn focus(display: &str, wid: &str) {
+    for _ in 0..50 {
+        xdotool(display, &["windowfocus", "--sync", wid]);
+        if xdotool(display, &["getwindowfocus"]).trim() == wid {
+            // Let the viewer see the focus change before the keys come.
+            sleep(Duration::from_millis(300));
+            return;
+        }
+        sleep(Duration::from_millis(100));
+    }
+    panic!("could not focus window {wid}");
+}
+
+fn log_of(dir: &Path) -> String {
+    let text = std::fs::read_to_string(dir.with_extension("log")).unwrap_or_default();
+    format!("viewer output:\n{text}")
+}
+
+/// Particle rows of `particles.csv`: `[x, y, vx, vy, density, pressure]`.
+fn read_particles(dir: &Path) -> Vec<[f64; 6]> {
+    let text = std::fs::read_to_string(dir.join("particles.csv")).expect("particles.csv");
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("x,y,vx,vy,density,pressure"));
+    lines
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            assert_eq!(v.len(), 6, "{l}");
+            assert!(v.iter().all(|x| x.is_finite()), "{l}");
+            [v[0], v[1], v[2], v[3], v[4], v[5]]
+        })
+        .collect()
+}
+
+/// Root-mean-square speed, m/s.
+fn rms_speed(p: &[[f64; 6]]) -> f64 {
+    (p.iter().map(|r| r[2] * r[2] + r[3] * r[3]).sum::<f64>() / p.len() as f64).sqrt()
+}
+
+fn mean_x(p: &[[f64; 6]]) -> f64 {
+    p.iter().map(|r| r[0]).sum::<f64>() / p.len() as f64
+}
+
+/// Standard deviation of the free-surface height, m: the highest particle in each 0.1 m wide
+/// column across the water. About a particle radius for water at rest; waves raise it.
+fn surface_roughness(p: &[[f64; 6]]) -> f64 {
+    let (lo, hi) = p.iter().fold((f64::MAX, f64::MIN), |(lo, hi), r| {
+        (lo.min(r[0]), hi.max(r[0]))
+    });
+    let bins = (((hi - lo) / 0.1) as usize).max(1);
+    let mut top = vec![f64::MIN; bins];
+    for r in p {
+        let b = (((r[0] - lo) / (hi - lo).max(1e-9) * bins as f64) as usize).min(bins - 1);
+        top[b] = top[b].max(r[1]);
+    }
+    let top: Vec<f64> = top.into_iter().filter(|t| *t > f64::MIN).collect();
+    let mean = top.iter().sum::<f64>() / top.len() as f64;
+    (top.iter().map(|t| (t - mean).powi(2)).sum::<f64>() / top.len() as f64).sqrt()
+}
+
+/// Shake directions the viewer applied, from `session.json`.
+fn shakes(dir: &Path) -> Vec<f64> {
+    let text = std::fs::read_to_string(dir.join("session.json")).expect("session.json");
+    let session: serde_json::Value = serde_json::from_str(&text).unwrap();
+    eprintln!(
+        "{}: simulated {:.2} s in {:.1} s wall, {:.1} FPS, pace {:.2}",
+        dir.display(),
+        session["simulated_time"].as_f64().unwrap_or(0.0),
+        session["wall_seconds"].as_f64().unwrap_or(0.0),
+        session["mean_fps"].as_f64().unwrap_or(0.0),
+        session["pace"].as_f64().unwrap_or(0.0),
+    );
+    session["actions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|a| a["action"]["action"] == "shake_tank")
+        .map(|a| a["action"]["direction"].as_f64().unwrap())
+        .collect()
+}
+
+/// The screenshot shows the window with the water drawn: many colours, little of it plain
+/// background, and a large area in the colours of the default (speed) colouring, which runs
+/// from deep blue (still) to pure white (fast).
+fn check_screenshot(dir: &Path) {
+    let (w, h, px) = dfsph_viewer::export::read_png(&dir.join("screenshot.png")).unwrap();
+    assert!(w >= 320 && h >= 200, "screenshot is {w}x{h}");
+    let mut counts = std::collections::HashMap::new();
+    for p in &px {
+        *counts.entry(*p).or_insert(0usize) += 1;
+    }
+    let background = counts.values().copied().max().unwrap();
+    let not_background = px.len() - background;
+    let water = px
+        .iter()
+        .filter(|p| {
+            let blue = p[2] as i32 > p[0] as i32 + 40 && p[2] > 100;
+            let white = p[0] == 255 && p[1] == 255 && p[2] == 255;
+            blue || white
+        })
+        .count();
+    eprintln!(
+        "{}: {w}x{h}, {} colours, {not_background} non-background pixels, {water} water pixels",
+        dir.display(),
+        counts.len()
+    );
+    assert!(counts.len() > 50, "only {} colours", counts.len());
+    assert!(
+        not_background > px.len() / 10,
+        "mostly blank: {not_background} of {} pixels differ from the background",
+        px.len()
+    );
+    assert!(
+        water > 10_000,
+        "the water is missing: {water} water-coloured pixels"
+    );
+}
+
+#[test]
+fn stirring_the_tank_under_xvfb_moves_the_water() {
+    let missing: Vec<_> = ["Xvfb", "xdotool"]
+        .into_iter()
+        .filter(|t| !on_path(t))
+        .collect();
+    if !missing.is_empty() {
+        eprintln!(
+            "note: skipping the viewer test, {} not installed \
+             (Debian: apt-get install xvfb xdotool libgl1-mesa-dri libegl1)",
+            missing.join(" and ")
+        );
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let xvfb = Xvfb::start();
+    let display = xvfb.display();
+
+    let stirred = tmp.path().join("stirred");
+    let untouched = tmp.path().join("untouched");
+    run_viewer(&display, &stirred, true);
+    run_viewer(&display, &untouched, false);
+
+    let a = read_particles(&stirred);
+    let b = read_particles(&untouched);
+    assert!(!a.is_empty());
+    assert_eq!(a.len(), b.len(), "the same water in both runs");
+
+    // The keys arrived: right, then left, then let go.
+    let s = shakes(&stirred);
+    assert!(
+        s.contains(&1.0) && s.contains(&-1.0) && s.last() == Some(&0.0),
+        "shake actions of the stirred run: {s:?}"
+    );
+    assert_eq!(shakes(&untouched), Vec::<f64>::new());
+
+    // The water: untouched, it stays at rest, centred in the tank, with a flat surface.
+    // Stirred, it has been carried sideways with the tank (a slow machine: the tank is still
+    // off centre when the viewer exits), or it sloshes (a fast one: the tank is back, the
+    // water is not): it moves, and its surface is not flat.
+    let (xa, xb) = (mean_x(&a), mean_x(&b));
+    let (va, vb) = (rms_speed(&a), rms_speed(&b));
+    let (sa, sb) = (surface_roughness(&a), surface_roughness(&b));
+    eprintln!("mean x:       stirred {xa:.4} m, untouched {xb:.4} m");
+    eprintln!("rms speed:    stirred {va:.4} m/s, untouched {vb:.4} m/s");
+    eprintln!("surface s.d.: stirred {sa:.4} m, untouched {sb:.4} m");
+    let displaced = (xa - xb).abs() > 0.03;
+    let moving = va > 0.05 && va > 4.0 * vb;
+    let waves = sa > 0.02 && sa > 4.0 * sb;
+    assert!(
+        displaced || moving || waves,
+        "the stirred water should differ clearly from the untouched water: mean x {xa:.4} vs \
+         {xb:.4} m (needs > 0.03 m apart), rms speed {va:.4} vs {vb:.4} m/s (needs > 4x), \
+         surface s.d. {sa:.4} vs {sb:.4} m (needs > 4x and 0.02 m)"
+    );
+
+    check_screenshot(&stirred);
+    check_screenshot(&untouched);
+}

@@ -1,0 +1,407 @@
+//! CPU rasteriser: draws one frame to an image with tiny-skia, no display or GPU needed.
+//!
+//! Boundary particles (tank walls, obstacles) are grey discs, fluid particles are discs at
+//! their physical radius coloured by speed with [`viridis`](crate::colormap::viridis). A band
+//! above the scene holds the legend: `0`, the colour bar, and the speed at its top end in m/s.
+//! The scene keeps its aspect ratio; the image has the requested width.
+
+use std::path::Path;
+
+use anyhow::{anyhow, Context, Result};
+use dfsph::{Simulation, Snapshot, Vec2};
+use tiny_skia::{Color, FillRule, Paint, PathBuilder, Pixmap, Rect, Transform};
+
+use crate::atomic::write_atomic;
+use crate::colormap::viridis;
+use crate::font;
+
+/// Largest image side in pixels.
+pub const MAX_SIDE: u32 = 16_384;
+/// Smallest image width in pixels.
+pub const MIN_WIDTH: u32 = 64;
+
+const BACKGROUND: Color = Color::WHITE;
+const WALL_GREY: u8 = 150;
+const TEXT_GREY: u8 = 40;
+/// Colour buckets: particles of one bucket are filled as one path.
+const BUCKETS: usize = 256;
+
+/// What stays the same between frames of a run: the walls and the particle size.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderGeometry<'a> {
+    /// Tank interior, lower-left corner, m.
+    pub tank_min: Vec2,
+    /// Tank interior, upper-right corner, m.
+    pub tank_max: Vec2,
+    /// Boundary particle positions, m.
+    pub boundary: &'a [Vec2],
+    /// Particle radius, m (fluid and boundary particles are drawn this size).
+    pub particle_radius: f32,
+}
+
+impl<'a> RenderGeometry<'a> {
+    /// The geometry of a running simulation as it stands now.
+    pub fn of(sim: &'a Simulation) -> Self {
+        let (tank_min, tank_max) = sim.tank_interior();
+        Self {
+            tank_min,
+            tank_max,
+            boundary: sim.boundary_positions(),
+            particle_radius: sim.particle_radius(),
+        }
+    }
+}
+
+/// How to draw.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderOptions {
+    /// Image width in pixels (clamped to [`MIN_WIDTH`], [`MAX_SIDE`]).
+    pub width: u32,
+    /// Speed, m/s, at the top of the colour scale. `None`: the frame's largest speed. Give a
+    /// fixed value to keep colours comparable between frames.
+    pub speed_max: Option<f32>,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        Self {
+            width: 800,
+            speed_max: None,
+        }
+    }
+}
+
+/// World-to-pixel mapping: `px = (x − x0)·scale + left`, `py = top + (y1 − y)·scale`.
+struct View {
+    x0: f32,
+    y1: f32,
+    scale: f32,
+    left: f32,
+    top: f32,
+}
+
+impl View {
+    fn map(&self, p: Vec2) -> (f32, f32) {
+        (
+            self.left + (p.x - self.x0) * self.scale,
+            self.top + (self.y1 - p.y) * self.scale,
+        )
+    }
+}
+
+/// Draw one frame.
+pub fn render_frame(
+    geometry: &RenderGeometry,
+    snapshot: &Snapshot,
+    options: &RenderOptions,
+) -> Result<Pixmap> {
+    let r = geometry.particle_radius.max(0.0);
+    // Scene extent: the tank interior and every wall particle, plus one radius and a margin.
+    let mut lo = geometry.tank_min.min(geometry.tank_max);
+    let mut hi = geometry.tank_min.max(geometry.tank_max);
+    for &p in geometry.boundary.iter().filter(|p| p.is_finite()) {
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    if !(lo.is_finite() && hi.is_finite()) {
+        return Err(anyhow!("cannot render: the tank extent is not finite"));
+    }
+    let size = (hi - lo).max(Vec2::splat(1.0e-6));
+    let pad = r + 0.02 * size.max_element();
+    lo -= Vec2::splat(pad);
+    hi += Vec2::splat(pad);
+    let size = hi - lo;
+
+    let width = options.width.clamp(MIN_WIDTH, MAX_SIDE);
+    let band = (width / 20).clamp(16, 64);
+    let scale = (width as f32 / size.x).min((MAX_SIDE - band) as f32 / size.y);
+    let scene_height = ((size.y * scale).ceil() as u32).max(1);
+    let height = band + scene_height;
+    let mut pixmap = Pixmap::new(width, height)
+        .ok_or_else(|| anyhow!("cannot allocate a {width}x{height} image"))?;
+    pixmap.fill(BACKGROUND);
+    let view = View {
+        x0: lo.x,
+        y1: hi.y,
+        scale,
+        left: 0.5 * (width as f32 - size.x * scale),
+        top: band as f32,
+    };
+    // Discs thinner than a pixel would vanish under anti-aliasing.
+    let r_px = (r * scale).max(0.6);
+
+    // Walls.
+    let mut walls = PathBuilder::new();
+    for &p in geometry.boundary.iter().filter(|p| p.is_finite()) {
+        let (x, y) = view.map(p);
+        walls.push_circle(x, y, r_px);
+    }
+    fill(&mut pixmap, walls, [WALL_GREY; 3]);
+
+    // Fluid, coloured by speed.
+    let speeds: Vec<f32> = (0..snapshot.position.len())
+        .map(|i| snapshot.velocity.get(i).map_or(0.0, |v| v.length()))
+        .collect();
+    let top_speed = match options.speed_max {
+        Some(s) if s.is_finite() && s > 0.0 => s,
+        _ => speeds
+            .iter()
+            .copied()
+            .filter(|s| s.is_finite())
+            .fold(0.0, f32::max),
+    };
+    let top_speed = if top_speed > 0.0 { top_speed } else { 1.0 };
+    let mut buckets: Vec<Option<PathBuilder>> = (0..BUCKETS).map(|_| None).collect();
+    for (&p, &speed) in snapshot.position.iter().zip(&speeds) {
+        if !p.is_finite() {
+            continue;
+        }
+        let t = speed / top_speed;
+        let k = ((if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) }) * (BUCKETS - 1) as f32).round()
+            as usize;
+        let (x, y) = view.map(p);
+        buckets[k]
+            .get_or_insert_with(PathBuilder::new)
+            .push_circle(x, y, r_px);
+    }
+    for (k, path) in buckets.into_iter().enumerate() {
+        if let Some(path) = path {
+            fill(&mut pixmap, path, viridis(k as f32 / (BUCKETS - 1) as f32));
+        }
+    }
+
+    draw_legend(&mut pixmap, band, top_speed);
+    Ok(pixmap)
+}
+
+fn fill(pixmap: &mut Pixmap, path: PathBuilder, rgb: [u8; 3]) {
+    if let Some(path) = path.finish() {
+        let mut paint = Paint {
+            anti_alias: true,
+            ..Paint::default()
+        };
+        paint.set_color_rgba8(rgb[0], rgb[1], rgb[2], 255);
+        pixmap.fill_path(
+            &path,
+            &paint,
+            FillRule::Winding,
+            Transform::identity(),
+            None,
+        );
+    }
+}
+
+/// `0 [colour bar] 6.3 m/s` in the band at the top of the image.
+fn draw_legend(pixmap: &mut Pixmap, band: u32, top_speed: f32) {
+    let text_scale = (band / 10).max(1);
+    let text_h = font::text_height(text_scale) as f32;
+    let margin = (band / 4) as f32;
+    let y_text = 0.5 * (band as f32 - text_h);
+    let grey = Color::from_rgba8(TEXT_GREY, TEXT_GREY, TEXT_GREY, 255);
+
+    let mut x = margin;
+    font::draw_text(pixmap, x, y_text, text_scale, "0", grey);
+    x += (font::text_width("0", text_scale) as f32 + margin * 0.5).round();
+
+    let bar_w = (0.25 * pixmap.width() as f32).round().max(16.0);
+    let bar_h = (band as f32 * 0.5).round().max(4.0);
+    let bar_y = 0.5 * (band as f32 - bar_h);
+    let steps = bar_w as usize;
+    let mut paint = Paint {
+        anti_alias: false,
+        ..Paint::default()
+    };
+    for k in 0..steps {
+        let c = viridis(k as f32 / (steps - 1).max(1) as f32);
+        paint.set_color_rgba8(c[0], c[1], c[2], 255);
+        if let Some(rect) = Rect::from_xywh(x + k as f32, bar_y, 1.0, bar_h) {
+            pixmap.fill_rect(rect, &paint, Transform::identity(), None);
+        }
+    }
+    x += bar_w + margin * 0.5;
+    font::draw_text(
+        pixmap,
+        x,
+        y_text,
+        text_scale,
+        &format!("{} m/s", speed_label(top_speed)),
+        grey,
+    );
+}
+
+/// A speed with two or three significant digits.
+fn speed_label(v: f32) -> String {
+    if v >= 100.0 {
+        format!("{v:.0}")
+    } else if v >= 10.0 {
+        format!("{v:.1}")
+    } else if v >= 0.1 {
+        format!("{v:.2}")
+    } else {
+        format!("{v:.1e}")
+    }
+}
+
+/// Render a frame and write it as a PNG.
+pub fn write_png(
+    path: impl AsRef<Path>,
+    geometry: &RenderGeometry,
+    snapshot: &Snapshot,
+    options: &RenderOptions,
+) -> Result<()> {
+    let path = path.as_ref();
+    let pixmap = render_frame(geometry, snapshot, options)?;
+    let bytes = pixmap
+        .encode_png()
+        .with_context(|| format!("cannot encode `{}`", path.display()))?;
+    write_atomic(path, |w| w.write_all(&bytes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 1 m x 1 m tank with one wall layer and a 0.4 m x 0.2 m block of water at its
+    /// bottom-left, the left half moving fast.
+    fn scene() -> (Vec<Vec2>, Snapshot) {
+        let r = 0.01;
+        let d = 2.0 * r;
+        let mut walls = Vec::new();
+        for i in -1..=51 {
+            let x = (i as f32 + 0.5) * d;
+            walls.push(Vec2::new(x, -r));
+            walls.push(Vec2::new(-r, x));
+            walls.push(Vec2::new(1.0 + r, x));
+        }
+        let mut snap = Snapshot::default();
+        for j in 0..10 {
+            for i in 0..20 {
+                let p = Vec2::new((i as f32 + 0.5) * d, (j as f32 + 0.5) * d);
+                snap.id.push(snap.position.len() as u32);
+                snap.position.push(p);
+                snap.velocity.push(if i < 10 {
+                    Vec2::new(2.0, 0.0)
+                } else {
+                    Vec2::ZERO
+                });
+                snap.density.push(1000.0);
+                snap.pressure.push(0.0);
+            }
+        }
+        (walls, snap)
+    }
+
+    fn pixel(p: &Pixmap, x: u32, y: u32) -> [u8; 3] {
+        let c = p.pixel(x, y).unwrap();
+        [c.red(), c.green(), c.blue()]
+    }
+
+    #[test]
+    fn png_decodes_with_water_coloured_by_speed() {
+        let (walls, snap) = scene();
+        let geometry = RenderGeometry {
+            tank_min: Vec2::ZERO,
+            tank_max: Vec2::ONE,
+            boundary: &walls,
+            particle_radius: 0.01,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("00000.png");
+        let options = RenderOptions {
+            width: 400,
+            speed_max: Some(2.0),
+        };
+        write_png(&path, &geometry, &snap, &options).unwrap();
+
+        let img = Pixmap::load_png(&path).expect("the PNG decodes");
+        assert_eq!(img.width(), 400);
+        let band = 400 / 20;
+        // Square scene: the part below the legend band is (nearly) square.
+        assert!((img.height() as i32 - band as i32 - 400).abs() <= 1);
+
+        // Map world points to pixels the way the renderer does.
+        let view_lo = -0.02 - 0.01 - 0.02 * 1.04;
+        let span = 1.04 + 2.0 * (0.01 + 0.02 * 1.04);
+        let s = 400.0 / span;
+        let to_px = |x: f32, y: f32| {
+            (
+                ((x - view_lo) * s) as u32,
+                (band as f32 + (1.0 + 0.02 + 0.01 + 0.02 * 1.04 - y) * s) as u32,
+            )
+        };
+        // Fast water (left half) is yellow, still water (right half) dark purple.
+        let (x, y) = to_px(0.1, 0.1);
+        let fast = pixel(&img, x, y);
+        assert!(fast[0] > 200 && fast[1] > 200 && fast[2] < 100, "{fast:?}");
+        let (x, y) = to_px(0.3, 0.1);
+        let slow = pixel(&img, x, y);
+        assert!(slow[2] > slow[1] + 30 && slow[0] < 120, "{slow:?}");
+        // Air above the water is background, the floor is grey.
+        let (x, y) = to_px(0.5, 0.7);
+        assert_eq!(pixel(&img, x, y), [255, 255, 255]);
+        let (x, y) = to_px(0.5, -0.01);
+        let wall = pixel(&img, x, y);
+        assert!(
+            wall[0] == wall[1] && wall[1] == wall[2] && wall[0] < 200,
+            "{wall:?}"
+        );
+        // The legend band holds the colour bar: dark purple at its left, yellow at its right.
+        let row: Vec<[u8; 3]> = (0..img.width()).map(|x| pixel(&img, x, band / 2)).collect();
+        assert!(row.iter().any(|c| *c == viridis(0.0)));
+        assert!(row.iter().any(|c| *c == viridis(1.0)));
+    }
+
+    #[test]
+    fn width_is_kept_and_aspect_follows_the_tank() {
+        let walls = [];
+        let snap = Snapshot::default();
+        let geometry = RenderGeometry {
+            tank_min: Vec2::ZERO,
+            tank_max: Vec2::new(4.0, 1.0),
+            boundary: &walls,
+            particle_radius: 0.01,
+        };
+        let img = render_frame(
+            &geometry,
+            &snap,
+            &RenderOptions {
+                width: 800,
+                speed_max: None,
+            },
+        )
+        .unwrap();
+        assert_eq!(img.width(), 800);
+        let scene_h = img.height() - 800 / 20;
+        let expected = 800.0 * (1.0 + 2.0 * (0.01 + 0.08)) / (4.0 + 2.0 * (0.01 + 0.08));
+        assert!(
+            (scene_h as f32 - expected).abs() <= 1.0,
+            "{scene_h} vs {expected}"
+        );
+    }
+
+    #[test]
+    fn non_finite_particles_are_skipped_not_fatal() {
+        let walls = [Vec2::new(f32::NAN, 0.0)];
+        let snap = Snapshot {
+            position: vec![Vec2::new(f32::INFINITY, 0.5), Vec2::new(0.5, 0.5)],
+            velocity: vec![Vec2::new(f32::NAN, 0.0), Vec2::ZERO],
+            ..Snapshot::default()
+        };
+        let geometry = RenderGeometry {
+            tank_min: Vec2::ZERO,
+            tank_max: Vec2::ONE,
+            boundary: &walls,
+            particle_radius: 0.05,
+        };
+        let img = render_frame(&geometry, &snap, &RenderOptions::default()).unwrap();
+        assert!(img.encode_png().is_ok());
+    }
+
+    #[test]
+    fn speed_labels() {
+        assert_eq!(speed_label(6.26), "6.26");
+        assert_eq!(speed_label(12.34), "12.3");
+        assert_eq!(speed_label(250.0), "250");
+        assert_eq!(speed_label(0.05), "5.0e-2");
+    }
+}

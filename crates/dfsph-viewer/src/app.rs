@@ -1,0 +1,496 @@
+//! The eframe application: owns the simulation, turns input into actions between steps,
+//! paces the stepping, draws, and handles screenshots and `--exit-after`.
+
+use std::cell::RefCell;
+use std::collections::VecDeque;
+use std::path::PathBuf;
+use std::rc::Rc;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Context as _};
+use dfsph::scene::BUILTIN_SCENES;
+use dfsph::{Action, Scene, Simulation, StepStats};
+use eframe::egui::{self, vec2, Color32, Sense, Stroke, ViewportCommand};
+
+use crate::clock::{FrameClock, FRAME_SLICE, STEP_BUDGET};
+use crate::export;
+use crate::hud::{self, FrameStats, History, HudInfo, Rate};
+use crate::input::{Command, InputMapper, Tool, ViewInput};
+use crate::panel::{self, PanelState};
+use crate::render::{self, Coloring, ViewTransform};
+use crate::ViewerOptions;
+
+/// How long `--exit-after` waits for the screenshot before giving up.
+const SCREENSHOT_TIMEOUT: Duration = Duration::from_secs(10);
+/// How long a status message stays in the panel.
+const STATUS_DURATION: Duration = Duration::from_secs(6);
+
+/// Errors the app hit that `run` must report after the window closes.
+pub type Failures = Rc<RefCell<Vec<anyhow::Error>>>;
+
+/// A requested screenshot, answered by the next `Event::Screenshot`.
+enum ShotPurpose {
+    /// F12: save to this file.
+    File(PathBuf),
+    /// `--save-on-exit`: save, then close the window.
+    Exit,
+}
+
+/// `--exit-after` / `--save-on-exit` progress.
+struct ExitPlan {
+    at: Instant,
+    dir: Option<PathBuf>,
+    /// When the exit began (files written, screenshot requested).
+    started: Option<Instant>,
+}
+
+/// One applied action, for the session record.
+struct LoggedAction {
+    time: f64,
+    action: Action,
+}
+
+/// The viewer.
+pub struct ViewerApp {
+    sim: Simulation,
+    /// `max_particles` of the scene as loaded; the pour budget is derived from it.
+    requested_max_particles: usize,
+    mapper: InputMapper,
+    clock: FrameClock,
+    paused: bool,
+    coloring: Coloring,
+    time_scale: f64,
+    radius_edit: f64,
+    show_help: bool,
+    history: History,
+    fps: Rate,
+    steps_per_second: Rate,
+    /// Simulated seconds per wall second.
+    sim_rate: Rate,
+    last_frame: Option<Instant>,
+    started: Instant,
+    frames: u64,
+    status: Option<(String, Instant)>,
+    disc: egui::TextureHandle,
+    fluid_colors: Vec<Color32>,
+    shots: VecDeque<ShotPurpose>,
+    exit: Option<ExitPlan>,
+    failures: Failures,
+    log: Vec<LoggedAction>,
+}
+
+impl ViewerApp {
+    /// Build the app for a scene; fails when the scene is invalid.
+    pub fn new(
+        cc: &eframe::CreationContext<'_>,
+        opts: ViewerOptions,
+        failures: Failures,
+    ) -> anyhow::Result<Self> {
+        cc.egui_ctx.set_visuals(egui::Visuals::dark());
+        let requested_max_particles = opts.scene.max_particles;
+        let sim = build_simulation(opts.scene, requested_max_particles)?;
+        let started = Instant::now();
+        let exit = opts.exit_after.map(|secs| ExitPlan {
+            at: started + Duration::from_secs_f64(secs.max(0.0)),
+            dir: opts.save_on_exit,
+            started: None,
+        });
+        Ok(Self {
+            mapper: InputMapper::new(sim.gravity(), 2.0 * sim.particle_radius()),
+            radius_edit: sim.scene().particle_radius,
+            sim,
+            requested_max_particles,
+            clock: FrameClock::default(),
+            paused: false,
+            coloring: Coloring::default(),
+            time_scale: 1.0,
+            show_help: false,
+            history: History::default(),
+            fps: Rate::default(),
+            steps_per_second: Rate::default(),
+            sim_rate: Rate::default(),
+            last_frame: None,
+            started,
+            frames: 0,
+            status: None,
+            disc: render::disc_texture(&cc.egui_ctx),
+            fluid_colors: Vec::new(),
+            shots: VecDeque::new(),
+            exit,
+            failures,
+            log: Vec::new(),
+        })
+    }
+
+    fn set_status(&mut self, msg: impl Into<String>) {
+        self.status = Some((msg.into(), Instant::now()));
+    }
+
+    fn fail(&mut self, err: anyhow::Error) {
+        self.set_status(format!("error: {err:#}"));
+        self.failures.borrow_mut().push(err);
+    }
+
+    /// Replace the simulation (reset, scene change, new radius), keeping the old one when
+    /// the new scene is rejected.
+    fn load(&mut self, ctx: &egui::Context, scene: Scene, requested_max_particles: usize) {
+        match build_simulation(scene, requested_max_particles) {
+            Ok(sim) => {
+                self.sim = sim;
+                self.requested_max_particles = requested_max_particles;
+                self.mapper
+                    .reset(self.sim.gravity(), 2.0 * self.sim.particle_radius());
+                self.radius_edit = self.sim.scene().particle_radius;
+                self.clock.reset();
+                self.history.clear();
+                ctx.send_viewport_cmd(ViewportCommand::Title(window_title(self.sim.scene())));
+            }
+            Err(e) => {
+                self.radius_edit = self.sim.scene().particle_radius;
+                self.set_status(format!("scene rejected: {e:#}"));
+            }
+        }
+    }
+
+    fn apply(&mut self, ctx: &egui::Context, cmd: Command) {
+        match cmd {
+            Command::Sim(action) => {
+                let outcome = self.sim.apply(&action);
+                if let Some(why) = outcome.rejected {
+                    self.set_status(format!("rejected: {why}"));
+                } else if matches!(action, Action::Emit { .. })
+                    && outcome.added == 0
+                    && self.sim.fluid_count() >= self.sim.scene().max_particles
+                {
+                    self.set_status("particle budget reached");
+                }
+                self.log.push(LoggedAction {
+                    time: self.sim.time(),
+                    action,
+                });
+            }
+            Command::TogglePause => {
+                self.paused = !self.paused;
+                self.clock.reset();
+            }
+            Command::Step => {
+                self.paused = true;
+                let s = *self.sim.step();
+                self.record(&[s]);
+            }
+            Command::Reset => {
+                let scene = self.sim.scene().clone();
+                self.load(ctx, scene, self.requested_max_particles);
+            }
+            Command::LoadScene(i) => {
+                if let Some(b) = BUILTIN_SCENES.get(i) {
+                    let scene = b.scene();
+                    let max = scene.max_particles;
+                    self.load(ctx, scene, max);
+                }
+            }
+            Command::SetParticleRadius(r) => {
+                let mut scene = self.sim.scene().clone();
+                scene.particle_radius = r;
+                self.load(ctx, scene, self.requested_max_particles);
+            }
+            Command::CycleColoring => self.coloring = self.coloring.next(),
+            Command::Screenshot => {
+                let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
+                self.shots
+                    .push_back(ShotPurpose::File(export::timestamped_png(&dir)));
+                ctx.send_viewport_cmd(ViewportCommand::Screenshot);
+            }
+            Command::ToggleHelp => self.show_help = !self.show_help,
+        }
+    }
+
+    fn record(&mut self, steps: &[StepStats]) {
+        let mut f = FrameStats::default();
+        for s in steps {
+            f.add(s);
+        }
+        if let Some(s) = f.sample() {
+            self.history.push(s);
+        }
+    }
+
+    /// Answer screenshot events with the purpose they were requested for.
+    fn handle_screenshots(&mut self, ctx: &egui::Context) {
+        let images: Vec<_> = ctx.input(|i| {
+            i.events
+                .iter()
+                .filter_map(|e| match e {
+                    egui::Event::Screenshot { image, .. } => Some(image.clone()),
+                    _ => None,
+                })
+                .collect()
+        });
+        for image in images {
+            match self.shots.pop_front() {
+                Some(ShotPurpose::File(path)) => match export::save_png(&path, &image) {
+                    Ok(()) => self.set_status(format!("saved {}", path.display())),
+                    Err(e) => self.set_status(format!("screenshot failed: {e:#}")),
+                },
+                Some(ShotPurpose::Exit) => {
+                    if let Some(dir) = self.exit.as_ref().and_then(|e| e.dir.clone()) {
+                        let path = dir.join("screenshot.png");
+                        if let Err(e) = export::save_png(&path, &image) {
+                            self.fail(e);
+                        }
+                    }
+                    ctx.send_viewport_cmd(ViewportCommand::Close);
+                }
+                None => {}
+            }
+        }
+    }
+
+    /// `--exit-after`: when the time comes, write the particles and the session record,
+    /// request the screenshot, and close once it is saved (or after a timeout).
+    fn check_exit(&mut self, ctx: &egui::Context) {
+        let Some(plan) = &self.exit else { return };
+        let now = Instant::now();
+        if let Some(started) = plan.started {
+            if now - started > SCREENSHOT_TIMEOUT {
+                self.fail(anyhow!(
+                    "no screenshot arrived within {} s",
+                    SCREENSHOT_TIMEOUT.as_secs()
+                ));
+                ctx.send_viewport_cmd(ViewportCommand::Close);
+            }
+            return;
+        }
+        if now < plan.at {
+            return;
+        }
+        let dir = plan.dir.clone();
+        if let Some(plan) = &mut self.exit {
+            plan.started = Some(now);
+        }
+        match dir {
+            Some(dir) => {
+                if let Err(e) = self.save_outputs(&dir) {
+                    self.fail(e);
+                }
+                self.shots.push_back(ShotPurpose::Exit);
+                ctx.send_viewport_cmd(ViewportCommand::Screenshot);
+            }
+            None => ctx.send_viewport_cmd(ViewportCommand::Close),
+        }
+    }
+
+    /// Write `particles.csv` and `session.json` (run statistics and every applied action).
+    fn save_outputs(&self, dir: &std::path::Path) -> anyhow::Result<()> {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        export::write_particles_csv(&dir.join("particles.csv"), &self.sim.snapshot())?;
+        let wall = self.started.elapsed().as_secs_f64();
+        let actions: Vec<_> = self
+            .log
+            .iter()
+            .map(|l| serde_json::json!({ "time": l.time, "action": l.action }))
+            .collect();
+        let session = serde_json::json!({
+            "scene": self.sim.scene().name,
+            "simulated_time": self.sim.time(),
+            "steps": self.sim.step_count(),
+            "frames": self.frames,
+            "wall_seconds": wall,
+            "mean_fps": self.frames as f64 / wall.max(1e-9),
+            "pace": self.sim_rate.get() / self.time_scale,
+            "fluid_particles": self.sim.fluid_count(),
+            "clamped": self.sim.total_clamped(),
+            "non_finite": self.sim.total_non_finite(),
+            "actions": actions,
+        });
+        let path = dir.join("session.json");
+        std::fs::write(&path, serde_json::to_string_pretty(&session)?)
+            .with_context(|| format!("writing {}", path.display()))
+    }
+}
+
+/// A simulation for `scene` with the viewer's pour budget: room for the scene's fluid and as
+/// much again (at least 2,000 more), within the scene's own `max_particles`.
+fn build_simulation(
+    mut scene: Scene,
+    requested_max_particles: usize,
+) -> anyhow::Result<Simulation> {
+    let n = scene.fluid_particle_count();
+    scene.max_particles = requested_max_particles.min((2 * n).max(n + 2000)).max(n);
+    Simulation::new(&scene).map_err(|e| anyhow!("scene `{}`: {e}", scene.name))
+}
+
+/// The window title; always contains "dfsph2d" (the Xvfb test finds the window by it).
+pub fn window_title(scene: &Scene) -> String {
+    format!("dfsph2d — {}", scene.name)
+}
+
+impl eframe::App for ViewerApp {
+    fn update(&mut self, ctx: &egui::Context, _frame: &mut eframe::Frame) {
+        let now = Instant::now();
+        let frame_seconds = self.last_frame.map_or(0.0, |l| (now - l).as_secs_f64());
+        self.fps.add(1.0, frame_seconds);
+        self.last_frame = Some(now);
+        self.frames += 1;
+        if self
+            .status
+            .as_ref()
+            .is_some_and(|(_, t)| t.elapsed() > STATUS_DURATION)
+        {
+            self.status = None;
+        }
+
+        self.handle_screenshots(ctx);
+        self.check_exit(ctx);
+        let exiting = self.exit.as_ref().is_some_and(|e| e.started.is_some());
+
+        // Side panel.
+        let mut commands = Vec::new();
+        let status = self.status.as_ref().map(|(s, _)| s.clone());
+        egui::SidePanel::right("controls")
+            .default_width(300.0)
+            .show(ctx, |ui| {
+                commands = panel::side_panel(
+                    ui,
+                    PanelState {
+                        sim: &self.sim,
+                        mapper: &mut self.mapper,
+                        time_scale: &mut self.time_scale,
+                        coloring: &mut self.coloring,
+                        radius_edit: &mut self.radius_edit,
+                        paused: self.paused,
+                        status: status.as_deref(),
+                    },
+                );
+            });
+
+        let plots_height = (0.2 * ctx.screen_rect().height()).clamp(70.0, 150.0);
+        egui::TopBottomPanel::bottom("plots")
+            .exact_height(plots_height)
+            .show(ctx, |ui| {
+                ui.add_space(4.0);
+                self.history.plots(ui);
+            });
+
+        // The view: its rect, its response to the pointer, and a painter clipped to it.
+        let (rect, response, painter) = egui::CentralPanel::default()
+            .frame(egui::Frame::none().fill(Color32::from_rgb(18, 20, 26)))
+            .show(ctx, |ui| {
+                // Clickable and draggable, but never focused: the keys belong to the viewer.
+                let sense = Sense {
+                    focusable: false,
+                    ..Sense::click_and_drag()
+                };
+                let (rect, response) = ui.allocate_exact_size(ui.available_size(), sense);
+                (rect, response, ui.painter_at(rect))
+            })
+            .inner;
+        let (lo, hi) = render::world_bounds(&self.sim);
+        let transform = ViewTransform::fit(lo, hi, rect.shrink(8.0));
+        let hover = ctx.input(|i| i.pointer.hover_pos());
+        let over_view =
+            response.hovered() || response.is_pointer_button_down_on() || response.dragged();
+        let view = ViewInput {
+            pointer: hover.filter(|_| over_view).map(|p| transform.to_world(p)),
+            keyboard: !ctx.wants_keyboard_input(),
+        };
+        commands.extend(ctx.input(|i| self.mapper.update(i, view)));
+
+        // Actions between steps, then this frame's slice of simulated time.
+        for cmd in commands {
+            self.apply(ctx, cmd);
+        }
+        if !self.paused && !exiting {
+            let slice = FRAME_SLICE * self.time_scale;
+            let mut steps = Vec::new();
+            let sim = &mut self.sim;
+            let report = self.clock.advance(slice, STEP_BUDGET, || {
+                let s = *sim.step();
+                steps.push(s);
+                s.dt
+            });
+            self.steps_per_second
+                .add(report.steps as f64, frame_seconds);
+            self.sim_rate.add(report.simulated, frame_seconds);
+            self.record(&steps);
+        }
+
+        // A reset or a new scene may have changed the world bounds.
+        let (lo, hi) = render::world_bounds(&self.sim);
+        let transform = ViewTransform::fit(lo, hi, rect.shrink(8.0));
+        self.draw(ctx, &painter, rect, &transform, hover.filter(|_| over_view));
+        hud::help_window(ctx, &mut self.show_help);
+        ctx.request_repaint();
+    }
+}
+
+impl ViewerApp {
+    /// How much slower than asked simulated time runs (budget overruns and slow frames
+    /// together), when it is noticeably slower.
+    fn slowed(&self) -> Option<f64> {
+        let pace = self.sim_rate.get() / self.time_scale;
+        (!self.paused && self.sim_rate.get() > 0.0 && pace < 0.95).then_some(pace)
+    }
+
+    fn draw(
+        &mut self,
+        ctx: &egui::Context,
+        painter: &egui::Painter,
+        rect: egui::Rect,
+        transform: &ViewTransform,
+        hover: Option<egui::Pos2>,
+    ) {
+        self.coloring.colors(&self.sim, &mut self.fluid_colors);
+        let mesh = render::particle_mesh(&self.sim, transform, self.disc.id(), &self.fluid_colors);
+        painter.add(egui::Shape::mesh(mesh));
+
+        // Wall preview and the tool circle.
+        if let Some(wall) = self.mapper.wall_preview() {
+            let pts: Vec<_> = wall.iter().map(|&p| transform.to_screen(p)).collect();
+            let width = (2.0 * self.sim.particle_radius() * transform.scale()).max(2.0);
+            painter.add(egui::Shape::line(
+                pts,
+                Stroke::new(width, render::WALL_COLOR.gamma_multiply(0.7)),
+            ));
+        }
+        if let Some(pos) = hover {
+            let erase_armed = ctx.input(|i| i.key_down(egui::Key::X));
+            let color = match self.mapper.tool() {
+                Tool::Pull => Color32::from_rgb(120, 220, 255),
+                Tool::Push => Color32::from_rgb(255, 170, 80),
+                Tool::Pour => Color32::from_rgb(80, 140, 255),
+                Tool::Erase => Color32::from_rgb(255, 80, 80),
+                Tool::Wall => Color32::TRANSPARENT,
+                Tool::Idle if erase_armed => Color32::from_rgb(255, 80, 80),
+                Tool::Idle => Color32::from_white_alpha(110),
+            };
+            painter.circle_stroke(
+                pos,
+                self.mapper.tool_radius * transform.scale(),
+                Stroke::new(1.5, color),
+            );
+        }
+
+        let range = self.coloring.range(&self.sim);
+        render::legend(painter, rect, self.coloring, range);
+
+        let stats = *self.sim.stats();
+        let info = HudInfo {
+            scene: &self.sim.scene().name,
+            fps: self.fps.get(),
+            steps_per_second: self.steps_per_second.get(),
+            particles: self.sim.fluid_count(),
+            budget: self.sim.scene().max_particles,
+            time: self.sim.time(),
+            stats: &stats,
+            paused: self.paused,
+            slowed: self.slowed(),
+            clamped: self.sim.total_clamped(),
+            non_finite: self.sim.total_non_finite(),
+        };
+        egui::Area::new(egui::Id::new("hud"))
+            .fixed_pos(rect.left_top() + vec2(8.0, 8.0))
+            .interactable(false)
+            .show(ctx, |ui| hud::hud(ui, &info));
+    }
+}

@@ -1,0 +1,136 @@
+//! Files the viewer writes: particle CSV, PNG screenshots, and the session record.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use anyhow::Context as _;
+use dfsph::Snapshot;
+use eframe::egui::ColorImage;
+
+/// Write `x,y,vx,vy,density,pressure` (m, m/s, kg/m³, Pa), one row per particle in id order.
+pub fn write_particles_csv(path: &Path, snap: &Snapshot) -> anyhow::Result<()> {
+    let file = File::create(path).with_context(|| format!("creating {}", path.display()))?;
+    let mut w = BufWriter::new(file);
+    writeln!(w, "x,y,vx,vy,density,pressure")?;
+    for i in 0..snap.position.len() {
+        let (p, v) = (snap.position[i], snap.velocity[i]);
+        writeln!(
+            w,
+            "{},{},{},{},{},{}",
+            p.x, p.y, v.x, v.y, snap.density[i], snap.pressure[i]
+        )?;
+    }
+    w.flush()
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+/// Save a screenshot as an RGBA PNG.
+pub fn save_png(path: &Path, image: &ColorImage) -> anyhow::Result<()> {
+    let [w, h] = image.size;
+    let rgba: Vec<u8> = image
+        .pixels
+        .iter()
+        .flat_map(|c| c.to_srgba_unmultiplied())
+        .collect();
+    image::save_buffer(path, &rgba, w as u32, h as u32, image::ColorType::Rgba8)
+        .with_context(|| format!("saving {}", path.display()))
+}
+
+/// Read a PNG as `(width, height, RGBA pixels)`; for tests that check screenshots.
+pub fn read_png(path: &Path) -> anyhow::Result<(u32, u32, Vec<[u8; 4]>)> {
+    let img = image::open(path)
+        .with_context(|| format!("reading {}", path.display()))?
+        .to_rgba8();
+    let (w, h) = img.dimensions();
+    Ok((w, h, img.pixels().map(|p| p.0).collect()))
+}
+
+/// `dfsph2d-YYYYMMDD-HHMMSS.png` (UTC) in `dir`, with `-2`, `-3`, ... appended when taken.
+pub fn timestamped_png(dir: &Path) -> PathBuf {
+    let secs = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let stem = format!("dfsph2d-{}", utc_stamp(secs));
+    let mut path = dir.join(format!("{stem}.png"));
+    let mut k = 2;
+    while path.exists() {
+        path = dir.join(format!("{stem}-{k}.png"));
+        k += 1;
+    }
+    path
+}
+
+/// `YYYYMMDD-HHMMSS` for seconds since the Unix epoch, UTC.
+fn utc_stamp(secs: u64) -> String {
+    let days = (secs / 86_400) as i64;
+    let rem = secs % 86_400;
+    // Civil date from days since 1970-01-01 (H. Hinnant's algorithm).
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year:04}{month:02}{day:02}-{:02}{:02}{:02}",
+        rem / 3600,
+        rem / 60 % 60,
+        rem % 60
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dfsph::Vec2;
+    use eframe::egui::Color32;
+
+    #[test]
+    fn utc_stamps_match_known_dates() {
+        assert_eq!(utc_stamp(0), "19700101-000000");
+        assert_eq!(utc_stamp(951_782_400), "20000229-000000");
+        assert_eq!(utc_stamp(1_700_000_000), "20231114-221320");
+    }
+
+    #[test]
+    fn csv_and_png_round_trip() {
+        let dir = std::env::temp_dir().join(format!("dfsph-viewer-export-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let snap = Snapshot {
+            time: 1.0,
+            id: vec![0, 1],
+            position: vec![Vec2::new(0.5, 0.25), Vec2::new(1.0, 2.0)],
+            velocity: vec![Vec2::new(-1.0, 0.0), Vec2::ZERO],
+            density: vec![1000.0, 999.5],
+            pressure: vec![10.0, 0.0],
+        };
+        let csv = dir.join("particles.csv");
+        write_particles_csv(&csv, &snap).unwrap();
+        let text = std::fs::read_to_string(&csv).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines[0], "x,y,vx,vy,density,pressure");
+        assert_eq!(lines[1], "0.5,0.25,-1,0,1000,10");
+        assert_eq!(lines.len(), 3);
+
+        let mut img = ColorImage::new([3, 2], Color32::BLACK);
+        img.pixels[4] = Color32::from_rgb(10, 200, 30);
+        let png = timestamped_png(&dir);
+        assert!(png
+            .file_name()
+            .unwrap()
+            .to_str()
+            .unwrap()
+            .starts_with("dfsph2d-"));
+        save_png(&png, &img).unwrap();
+        let (w, h, px) = read_png(&png).unwrap();
+        assert_eq!((w, h), (3, 2));
+        assert_eq!(px[4], [10, 200, 30, 255]);
+        assert_ne!(timestamped_png(&dir), png);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,657 @@
+//! Keyboard and mouse → viewer [`Command`]s and solver [`Action`]s.
+//!
+//! [`InputMapper`] reads one frame of egui input ([`egui::InputState`]) plus where the pointer
+//! is in the world ([`ViewInput`]) and returns what should happen. It owns no window and no
+//! simulation, so it is unit-tested by feeding an `egui::Context` synthetic events.
+
+use dfsph::forces::MAX_POINTER_ACCELERATION;
+use dfsph::scene::BUILTIN_SCENES;
+use dfsph::{Action, Vec2};
+use eframe::egui::{self, Key, PointerButton};
+
+/// Every key and mouse binding, as shown in the help overlay: (keys, what they do).
+pub const KEY_HELP: &[(&str, &str)] = &[
+    ("A / D, ← / →", "shake the tank left / right while held"),
+    ("Q / E", "tilt gravity left / right by 5° (up to ±45°)"),
+    ("left drag", "pull water towards the cursor"),
+    ("right drag", "push water away from the cursor"),
+    ("mouse wheel", "change the tool radius (the circle)"),
+    (
+        "F or middle button",
+        "pour water at the cursor (within the particle budget)",
+    ),
+    ("Shift + left drag", "draw a wall (added on release)"),
+    (
+        "X + left click/drag",
+        "erase water and drawn walls under the cursor",
+    ),
+    ("Space", "pause / resume"),
+    ("N", "single step (pauses)"),
+    ("R", "reset the scene"),
+    ("1 – 9", "load a built-in scene"),
+    ("C", "cycle the colouring (speed, density, pressure)"),
+    ("F12", "save a PNG screenshot to the current directory"),
+    ("H or ?", "show / hide this help"),
+];
+
+/// Gravity tilt per press of `q` / `e`, degrees.
+pub const TILT_STEP_DEG: f32 = 5.0;
+/// Largest gravity tilt, degrees either way.
+pub const MAX_TILT_DEG: f32 = 45.0;
+/// Speed of poured water, m/s (downwards).
+pub const POUR_SPEED: f32 = 1.0;
+
+/// Something the viewer should do in response to input.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Command {
+    /// Apply this action to the simulation before the next step.
+    Sim(Action),
+    /// Pause or resume.
+    TogglePause,
+    /// Take one solver step (and pause).
+    Step,
+    /// Restart the current scene.
+    Reset,
+    /// Load `BUILTIN_SCENES[index]`.
+    LoadScene(usize),
+    /// Switch to the next colouring.
+    CycleColoring,
+    /// Save a screenshot to the current directory.
+    Screenshot,
+    /// Show or hide the help overlay.
+    ToggleHelp,
+    /// Restart the current scene with this particle radius, m (from the side panel).
+    SetParticleRadius(f64),
+}
+
+/// Where the pointer is, as far as the simulation view is concerned.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ViewInput {
+    /// The pointer in world coordinates (m) when it is over the view or dragging from it;
+    /// `None` when it is elsewhere (side panel, outside the window).
+    pub pointer: Option<Vec2>,
+    /// The keyboard belongs to the viewer (no text field has focus).
+    pub keyboard: bool,
+}
+
+/// What the pointer tool is doing this frame (for drawing the cursor circle).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Tool {
+    /// Nothing pressed.
+    #[default]
+    Idle,
+    /// Pulling water in (left drag).
+    Pull,
+    /// Pushing water away (right drag).
+    Push,
+    /// Pouring water (f / middle button).
+    Pour,
+    /// Erasing (x + click).
+    Erase,
+    /// Drawing a wall (shift + drag).
+    Wall,
+}
+
+/// Turns egui input into commands, remembering what is held between frames.
+#[derive(Clone, Debug)]
+pub struct InputMapper {
+    /// Radius of the pointer tools (push, pull, pour, erase), m.
+    pub tool_radius: f32,
+    /// Peak acceleration of push and pull, m/s² (at most `MAX_POINTER_ACCELERATION`).
+    pub pointer_strength: f32,
+    /// Smallest and largest tool radius, m.
+    pub radius_limits: (f32, f32),
+    /// Distance between recorded points of a drawn wall, m.
+    pub wall_point_spacing: f32,
+    /// Magnitude of gravity, m/s².
+    gravity_magnitude: f32,
+    /// Gravity's angle from straight down, degrees (positive tips it towards +x).
+    tilt_deg: f32,
+    /// Shake direction last sent.
+    shake: f32,
+    /// A push or pull is in force.
+    pointer_active: bool,
+    /// The wall being drawn.
+    wall: Option<Vec<Vec2>>,
+    tool: Tool,
+}
+
+impl Default for InputMapper {
+    fn default() -> Self {
+        Self {
+            tool_radius: 0.2,
+            pointer_strength: MAX_POINTER_ACCELERATION,
+            radius_limits: (0.02, 2.0),
+            wall_point_spacing: 0.02,
+            gravity_magnitude: 9.81,
+            tilt_deg: 0.0,
+            shake: 0.0,
+            pointer_active: false,
+            wall: None,
+            tool: Tool::Idle,
+        }
+    }
+}
+
+impl InputMapper {
+    /// A mapper for a scene with this gravity (m/s²) and particle spacing (m).
+    pub fn new(gravity: Vec2, spacing: f32) -> Self {
+        let mut m = Self::default();
+        m.reset(gravity, spacing);
+        m
+    }
+
+    /// Forget everything held (a new scene was loaded) and take the scene's gravity as the
+    /// untilted reference if it points down, or as a tilt of its own otherwise.
+    pub fn reset(&mut self, gravity: Vec2, spacing: f32) {
+        self.gravity_magnitude = gravity.length();
+        self.tilt_deg = if gravity.length_squared() > 0.0 {
+            gravity.x.atan2(-gravity.y).to_degrees()
+        } else {
+            0.0
+        };
+        self.shake = 0.0;
+        self.pointer_active = false;
+        self.wall = None;
+        self.tool = Tool::Idle;
+        self.wall_point_spacing = 2.0 * spacing;
+        self.radius_limits.0 = 2.0 * spacing;
+        self.tool_radius = self
+            .tool_radius
+            .clamp(self.radius_limits.0, self.radius_limits.1);
+    }
+
+    /// Gravity as the tilt and magnitude make it, m/s².
+    pub fn gravity(&self) -> Vec2 {
+        let a = self.tilt_deg.to_radians();
+        self.gravity_magnitude * Vec2::new(a.sin(), -a.cos())
+    }
+
+    /// Gravity's tilt from straight down, degrees.
+    pub fn tilt_deg(&self) -> f32 {
+        self.tilt_deg
+    }
+
+    /// Magnitude of gravity, m/s².
+    pub fn gravity_magnitude(&self) -> f32 {
+        self.gravity_magnitude
+    }
+
+    /// Set gravity from a magnitude (m/s², at least 0) and a tilt (degrees, clamped to
+    /// ±[`MAX_TILT_DEG`]); returns the action that applies it.
+    pub fn set_gravity(&mut self, magnitude: f32, tilt_deg: f32) -> Action {
+        self.gravity_magnitude = magnitude.max(0.0);
+        self.tilt_deg = tilt_deg.clamp(-MAX_TILT_DEG, MAX_TILT_DEG);
+        Action::SetGravity {
+            gravity: self.gravity(),
+        }
+    }
+
+    /// The wall being drawn, for the preview.
+    pub fn wall_preview(&self) -> Option<&[Vec2]> {
+        self.wall.as_deref()
+    }
+
+    /// What the pointer did in the last frame.
+    pub fn tool(&self) -> Tool {
+        self.tool
+    }
+
+    /// Map one frame of input to commands.
+    pub fn update(&mut self, input: &egui::InputState, view: ViewInput) -> Vec<Command> {
+        let mut out = Vec::new();
+        if view.keyboard {
+            self.keys(input, &mut out);
+        }
+        let shake = if view.keyboard {
+            let held = |a: Key, b: Key| input.key_down(a) || input.key_down(b);
+            f32::from(held(Key::D, Key::ArrowRight)) - f32::from(held(Key::A, Key::ArrowLeft))
+        } else {
+            0.0
+        };
+        if shake != self.shake {
+            self.shake = shake;
+            out.push(Command::Sim(Action::ShakeTank { direction: shake }));
+        }
+        self.pointer(input, view, &mut out);
+        out
+    }
+
+    fn keys(&mut self, input: &egui::InputState, out: &mut Vec<Command>) {
+        for (key, step) in [(Key::Q, -TILT_STEP_DEG), (Key::E, TILT_STEP_DEG)] {
+            for _ in 0..input.num_presses(key) {
+                let tilt = self.tilt_deg + step;
+                let action = self.set_gravity(self.gravity_magnitude, tilt);
+                out.push(Command::Sim(action));
+            }
+        }
+        if input.key_pressed(Key::Space) {
+            out.push(Command::TogglePause);
+        }
+        for _ in 0..input.num_presses(Key::N) {
+            out.push(Command::Step);
+        }
+        if input.key_pressed(Key::R) {
+            out.push(Command::Reset);
+        }
+        const NUMBERS: [Key; 9] = [
+            Key::Num1,
+            Key::Num2,
+            Key::Num3,
+            Key::Num4,
+            Key::Num5,
+            Key::Num6,
+            Key::Num7,
+            Key::Num8,
+            Key::Num9,
+        ];
+        for (i, key) in NUMBERS.iter().enumerate() {
+            if i < BUILTIN_SCENES.len() && input.key_pressed(*key) {
+                out.push(Command::LoadScene(i));
+            }
+        }
+        if input.key_pressed(Key::C) {
+            out.push(Command::CycleColoring);
+        }
+        if input.key_pressed(Key::F12) {
+            out.push(Command::Screenshot);
+        }
+        // `?` arrives as Key::Questionmark on some layouts and only as text on others.
+        let question = input.key_pressed(Key::Questionmark)
+            || input
+                .events
+                .iter()
+                .any(|e| matches!(e, egui::Event::Text(t) if t == "?"));
+        if input.key_pressed(Key::H) || question {
+            out.push(Command::ToggleHelp);
+        }
+    }
+
+    fn pointer(&mut self, input: &egui::InputState, view: ViewInput, out: &mut Vec<Command>) {
+        let p = &input.pointer;
+        let primary = p.button_down(PointerButton::Primary);
+        let secondary = p.button_down(PointerButton::Secondary);
+        let middle = p.button_down(PointerButton::Middle);
+        let keys = |k: Key| view.keyboard && input.key_down(k);
+        self.tool = Tool::Idle;
+
+        // A wall in progress ends when the button is released, wherever the pointer is.
+        if self.wall.is_some() && !primary {
+            let wall = self.wall.take().unwrap_or_default();
+            if wall.len() >= 2 {
+                out.push(Command::Sim(Action::AddWall { polyline: wall }));
+            }
+        }
+
+        let Some(at) = view.pointer else {
+            self.release(out);
+            return;
+        };
+
+        let scroll = input.raw_scroll_delta.y;
+        if scroll != 0.0 {
+            // About 10 % per wheel notch (egui reports 50 points per line).
+            let factor = 1.1f32.powf(scroll / 50.0);
+            self.tool_radius =
+                (self.tool_radius * factor).clamp(self.radius_limits.0, self.radius_limits.1);
+        }
+
+        if let Some(wall) = &mut self.wall {
+            self.tool = Tool::Wall;
+            if wall
+                .last()
+                .is_none_or(|last| last.distance(at) >= self.wall_point_spacing)
+            {
+                wall.push(at);
+            }
+            self.release(out);
+            return;
+        }
+        if primary && p.primary_pressed() && input.modifiers.shift {
+            self.wall = Some(vec![at]);
+            self.tool = Tool::Wall;
+            self.release(out);
+            return;
+        }
+        if primary && keys(Key::X) {
+            self.tool = Tool::Erase;
+            self.release(out);
+            out.push(Command::Sim(Action::Erase {
+                at,
+                radius: self.tool_radius,
+            }));
+            return;
+        }
+        if middle || keys(Key::F) {
+            self.tool = Tool::Pour;
+            out.push(Command::Sim(Action::Emit {
+                at,
+                radius: self.tool_radius,
+                velocity: Vec2::new(0.0, -POUR_SPEED),
+            }));
+        }
+        if primary || secondary {
+            self.tool = if primary { Tool::Pull } else { Tool::Push };
+            let strength = self.pointer_strength.clamp(0.0, MAX_POINTER_ACCELERATION);
+            self.pointer_active = true;
+            out.push(Command::Sim(Action::Push {
+                at,
+                radius: self.tool_radius,
+                strength: if primary { -strength } else { strength },
+            }));
+        } else {
+            self.release(out);
+        }
+    }
+
+    fn release(&mut self, out: &mut Vec<Command>) {
+        if self.pointer_active {
+            self.pointer_active = false;
+            out.push(Command::Sim(Action::ReleasePointer));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use egui::{Event, Modifiers, Pos2, RawInput};
+
+    /// Runs frames of synthetic egui input through a mapper, like the window would.
+    struct Harness {
+        ctx: egui::Context,
+        mapper: InputMapper,
+        pointer: Option<Vec2>,
+    }
+
+    impl Harness {
+        fn new() -> Self {
+            Self {
+                ctx: egui::Context::default(),
+                mapper: InputMapper::new(Vec2::new(0.0, -9.81), 0.02),
+                pointer: Some(Vec2::new(1.0, 0.5)),
+            }
+        }
+
+        fn frame(&mut self, events: Vec<Event>) -> Vec<Command> {
+            self.frame_with(events, Modifiers::NONE)
+        }
+
+        fn frame_with(&mut self, events: Vec<Event>, modifiers: Modifiers) -> Vec<Command> {
+            let raw = RawInput {
+                events,
+                modifiers,
+                ..Default::default()
+            };
+            let mut out = Vec::new();
+            let view = ViewInput {
+                pointer: self.pointer,
+                keyboard: true,
+            };
+            let _ = self.ctx.run(raw, |ctx| {
+                out = ctx.input(|i| self.mapper.update(i, view));
+            });
+            out
+        }
+    }
+
+    fn key(key: Key, pressed: bool) -> Event {
+        Event::Key {
+            key,
+            physical_key: None,
+            pressed,
+            repeat: false,
+            modifiers: Modifiers::NONE,
+        }
+    }
+
+    fn button(button: PointerButton, pressed: bool, modifiers: Modifiers) -> Event {
+        Event::PointerButton {
+            pos: Pos2::new(100.0, 100.0),
+            button,
+            pressed,
+            modifiers,
+        }
+    }
+
+    fn moved() -> Event {
+        Event::PointerMoved(Pos2::new(100.0, 100.0))
+    }
+
+    fn shake(direction: f32) -> Command {
+        Command::Sim(Action::ShakeTank { direction })
+    }
+
+    #[test]
+    fn d_shakes_right_while_held_and_release_stops() {
+        let mut h = Harness::new();
+        assert_eq!(h.frame(vec![key(Key::D, true)]), vec![shake(1.0)]);
+        // Held: nothing new.
+        assert_eq!(h.frame(vec![]), vec![]);
+        assert_eq!(h.frame(vec![key(Key::D, false)]), vec![shake(0.0)]);
+        assert_eq!(h.frame(vec![]), vec![]);
+    }
+
+    #[test]
+    fn a_and_arrows_shake_and_opposite_keys_cancel() {
+        let mut h = Harness::new();
+        assert_eq!(h.frame(vec![key(Key::A, true)]), vec![shake(-1.0)]);
+        assert_eq!(h.frame(vec![key(Key::ArrowRight, true)]), vec![shake(0.0)]);
+        assert_eq!(h.frame(vec![key(Key::A, false)]), vec![shake(1.0)]);
+        assert_eq!(h.frame(vec![key(Key::ArrowRight, false)]), vec![shake(0.0)]);
+    }
+
+    #[test]
+    fn keys_are_ignored_while_a_text_field_has_focus() {
+        let mut h = Harness::new();
+        let raw = RawInput {
+            events: vec![key(Key::D, true), key(Key::R, true)],
+            ..Default::default()
+        };
+        let mut out = Vec::new();
+        let _ = h.ctx.run(raw, |ctx| {
+            let view = ViewInput {
+                pointer: None,
+                keyboard: false,
+            };
+            out = ctx.input(|i| h.mapper.update(i, view));
+        });
+        assert_eq!(out, vec![]);
+    }
+
+    #[test]
+    fn q_and_e_tilt_gravity_within_bounds() {
+        let mut h = Harness::new();
+        let out = h.frame(vec![key(Key::E, true), key(Key::E, false)]);
+        let [Command::Sim(Action::SetGravity { gravity })] = out.as_slice() else {
+            panic!("expected one SetGravity, got {out:?}");
+        };
+        assert!((gravity.length() - 9.81).abs() < 1e-4);
+        assert!(gravity.x > 0.0, "e tips gravity towards +x: {gravity}");
+        assert!((h.mapper.tilt_deg() - TILT_STEP_DEG).abs() < 1e-4);
+        for _ in 0..20 {
+            h.frame(vec![key(Key::Q, true), key(Key::Q, false)]);
+        }
+        assert!((h.mapper.tilt_deg() + MAX_TILT_DEG).abs() < 1e-4);
+        let g = h.mapper.gravity();
+        assert!(
+            (g.x - g.y).abs() < 1e-3 && g.x < 0.0,
+            "tilted 45° left: {g}"
+        );
+    }
+
+    #[test]
+    fn single_keys_map_to_viewer_commands() {
+        let mut h = Harness::new();
+        let cases = [
+            (Key::Space, Command::TogglePause),
+            (Key::N, Command::Step),
+            (Key::R, Command::Reset),
+            (Key::Num1, Command::LoadScene(0)),
+            (Key::Num2, Command::LoadScene(1)),
+            (Key::C, Command::CycleColoring),
+            (Key::F12, Command::Screenshot),
+            (Key::H, Command::ToggleHelp),
+            (Key::Questionmark, Command::ToggleHelp),
+        ];
+        for (k, want) in cases {
+            assert_eq!(
+                h.frame(vec![key(k, true), key(k, false)]),
+                vec![want],
+                "{k:?}"
+            );
+        }
+        // Scenes that do not exist are ignored.
+        assert_eq!(h.frame(vec![key(Key::Num9, true)]), vec![]);
+    }
+
+    #[test]
+    fn left_drag_pulls_right_drag_pushes_and_release_lets_go() {
+        let mut h = Harness::new();
+        let at = h.pointer.unwrap();
+        let s = MAX_POINTER_ACCELERATION;
+        let r = h.mapper.tool_radius;
+        let out = h.frame(vec![
+            moved(),
+            button(PointerButton::Primary, true, Modifiers::NONE),
+        ]);
+        assert_eq!(
+            out,
+            vec![Command::Sim(Action::Push {
+                at,
+                radius: r,
+                strength: -s
+            })]
+        );
+        assert_eq!(h.mapper.tool(), Tool::Pull);
+        // Dragging follows the pointer.
+        h.pointer = Some(Vec2::new(1.5, 0.7));
+        let out = h.frame(vec![moved()]);
+        assert_eq!(
+            out,
+            vec![Command::Sim(Action::Push {
+                at: Vec2::new(1.5, 0.7),
+                radius: r,
+                strength: -s
+            })]
+        );
+        let out = h.frame(vec![button(PointerButton::Primary, false, Modifiers::NONE)]);
+        assert_eq!(out, vec![Command::Sim(Action::ReleasePointer)]);
+        let out = h.frame(vec![button(
+            PointerButton::Secondary,
+            true,
+            Modifiers::NONE,
+        )]);
+        assert!(matches!(
+            out.as_slice(),
+            [Command::Sim(Action::Push { strength, .. })] if *strength == s
+        ));
+        assert_eq!(h.mapper.tool(), Tool::Push);
+        // Leaving the view lets go too.
+        h.pointer = None;
+        assert_eq!(h.frame(vec![]), vec![Command::Sim(Action::ReleasePointer)]);
+    }
+
+    #[test]
+    fn wheel_changes_the_tool_radius() {
+        let mut h = Harness::new();
+        let r0 = h.mapper.tool_radius;
+        h.frame(vec![
+            moved(),
+            Event::MouseWheel {
+                unit: egui::MouseWheelUnit::Line,
+                delta: egui::vec2(0.0, 1.0),
+                modifiers: Modifiers::NONE,
+            },
+        ]);
+        assert!(h.mapper.tool_radius > r0, "{} > {r0}", h.mapper.tool_radius);
+    }
+
+    #[test]
+    fn f_and_middle_button_pour_at_the_cursor() {
+        let mut h = Harness::new();
+        let out = h.frame(vec![key(Key::F, true)]);
+        assert!(
+            matches!(out.as_slice(), [Command::Sim(Action::Emit { at, velocity, .. })]
+                if *at == h.pointer.unwrap() && velocity.y < 0.0),
+            "{out:?}"
+        );
+        // Held: keeps pouring every frame.
+        assert_eq!(h.frame(vec![]).len(), 1);
+        h.frame(vec![key(Key::F, false)]);
+        let out = h.frame(vec![button(PointerButton::Middle, true, Modifiers::NONE)]);
+        assert!(matches!(
+            out.as_slice(),
+            [Command::Sim(Action::Emit { .. })]
+        ));
+        assert_eq!(h.mapper.tool(), Tool::Pour);
+    }
+
+    #[test]
+    fn shift_drag_draws_a_wall_added_on_release() {
+        let mut h = Harness::new();
+        h.pointer = Some(Vec2::new(1.0, 1.0));
+        let out = h.frame_with(
+            vec![
+                moved(),
+                button(PointerButton::Primary, true, Modifiers::SHIFT),
+            ],
+            Modifiers::SHIFT,
+        );
+        assert_eq!(out, vec![]);
+        for x in [1.1, 1.2, 1.3] {
+            h.pointer = Some(Vec2::new(x, 1.0));
+            assert_eq!(h.frame_with(vec![moved()], Modifiers::SHIFT), vec![]);
+        }
+        assert_eq!(h.mapper.wall_preview().map(<[Vec2]>::len), Some(4));
+        let out = h.frame(vec![button(PointerButton::Primary, false, Modifiers::NONE)]);
+        let [Command::Sim(Action::AddWall { polyline })] = out.as_slice() else {
+            panic!("expected AddWall, got {out:?}");
+        };
+        assert_eq!(polyline.len(), 4);
+        assert_eq!(polyline[0], Vec2::new(1.0, 1.0));
+        assert!(h.mapper.wall_preview().is_none());
+    }
+
+    #[test]
+    fn x_click_erases_under_the_cursor() {
+        let mut h = Harness::new();
+        let out = h.frame(vec![
+            key(Key::X, true),
+            moved(),
+            button(PointerButton::Primary, true, Modifiers::NONE),
+        ]);
+        assert_eq!(
+            out,
+            vec![Command::Sim(Action::Erase {
+                at: h.pointer.unwrap(),
+                radius: h.mapper.tool_radius
+            })]
+        );
+        assert_eq!(h.mapper.tool(), Tool::Erase);
+    }
+
+    #[test]
+    fn every_binding_is_in_the_help() {
+        let text: String = KEY_HELP.iter().map(|(k, _)| *k).collect();
+        for needle in [
+            "A / D",
+            "Q / E",
+            "left drag",
+            "right drag",
+            "wheel",
+            "F",
+            "Shift",
+            "X",
+            "Space",
+            "N",
+            "R",
+            "1",
+            "C",
+            "F12",
+            "H or ?",
+        ] {
+            assert!(text.contains(needle), "{needle}");
+        }
+    }
+}

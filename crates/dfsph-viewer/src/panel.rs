@@ -1,0 +1,195 @@
+//! The side panel: scene picker, solver and viewer parameters, run controls, live plots.
+//! Every solver parameter change becomes an [`Action`] (`SetSolver`, `SetViscosity`,
+//! `SetTimeStep`, `SetGravity`) applied between steps, like any other input.
+
+use dfsph::forces::MAX_POINTER_ACCELERATION;
+use dfsph::scene::{Method, BUILTIN_SCENES};
+use dfsph::{Action, Simulation};
+use eframe::egui::{self, Slider};
+
+use crate::input::{Command, InputMapper, MAX_TILT_DEG};
+use crate::render::Coloring;
+
+/// What the side panel reads and edits.
+pub struct PanelState<'a> {
+    pub sim: &'a Simulation,
+    pub mapper: &'a mut InputMapper,
+    /// Simulated seconds per wall second asked for.
+    pub time_scale: &'a mut f64,
+    pub coloring: &'a mut Coloring,
+    /// The particle radius slider's value, m (applied when the slider is let go).
+    pub radius_edit: &'a mut f64,
+    pub paused: bool,
+    /// The last message for the user (rejected actions, saved files).
+    pub status: Option<&'a str>,
+}
+
+/// Draw the panel's contents; returns the commands the user gave.
+pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
+    let mut out = Vec::new();
+    let sim = st.sim;
+    let scene = sim.scene();
+    egui::ScrollArea::vertical().show(ui, |ui| {
+        ui.heading("dfsph2d");
+        ui.horizontal(|ui| {
+            if ui
+                .button(if st.paused { "▶ Resume" } else { "⏸ Pause" })
+                .clicked()
+            {
+                out.push(Command::TogglePause);
+            }
+            if ui.button("Step").clicked() {
+                out.push(Command::Step);
+            }
+            if ui.button("Reset").clicked() {
+                out.push(Command::Reset);
+            }
+        });
+        ui.horizontal(|ui| {
+            if ui.button("Screenshot").clicked() {
+                out.push(Command::Screenshot);
+            }
+            if ui.button("Help").clicked() {
+                out.push(Command::ToggleHelp);
+            }
+        });
+        if let Some(msg) = st.status {
+            ui.label(egui::RichText::new(msg).small());
+        }
+        ui.separator();
+
+        egui::ComboBox::from_label("scene")
+            .selected_text(scene.name.as_str())
+            .show_ui(ui, |ui| {
+                for (i, b) in BUILTIN_SCENES.iter().enumerate() {
+                    let r = ui
+                        .selectable_label(b.name == scene.name, format!("{} {}", i + 1, b.name))
+                        .on_hover_text(b.description);
+                    if r.clicked() {
+                        out.push(Command::LoadScene(i));
+                    }
+                }
+            });
+        let r = ui
+            .add(
+                Slider::new(st.radius_edit, 0.004..=0.05)
+                    .logarithmic(true)
+                    .text("particle radius (m)"),
+            )
+            .on_hover_text("Restarts the scene with the new resolution");
+        // Apply once the slider is let go or the typed value is committed, not for every
+        // intermediate value.
+        let idle = !r.dragged() && !ui.ctx().wants_keyboard_input();
+        if idle && *st.radius_edit != scene.particle_radius {
+            out.push(Command::SetParticleRadius(*st.radius_edit));
+        }
+
+        ui.separator();
+        ui.label(egui::RichText::new("Solver").strong());
+        let mut solver = scene.solver.clone();
+        ui.horizontal(|ui| {
+            ui.radio_value(&mut solver.method, Method::Dfsph, "DFSPH");
+            ui.radio_value(&mut solver.method, Method::Wcsph, "WCSPH");
+        });
+        ui.checkbox(&mut solver.divergence_solve, "divergence solve");
+        ui.checkbox(&mut solver.warm_start, "warm start");
+        ui.add(
+            Slider::new(&mut solver.density_tolerance_pct, 0.001..=1.0)
+                .logarithmic(true)
+                .text("density tol. (avg %)"),
+        );
+        ui.add(
+            Slider::new(&mut solver.divergence_tolerance_pct, 0.01..=10.0)
+                .logarithmic(true)
+                .text("divergence tol. (avg %/step)"),
+        );
+        ui.add(Slider::new(&mut solver.min_iterations, 0..=50).text("min iterations"));
+        ui.add(
+            Slider::new(&mut solver.max_iterations, 1..=1000)
+                .logarithmic(true)
+                .text("max iterations"),
+        );
+        solver.max_iterations = solver.max_iterations.max(solver.min_iterations.max(1));
+        if solver != scene.solver {
+            out.push(Command::Sim(Action::SetSolver { solver }));
+        }
+
+        let mut time_step = scene.time_step.clone();
+        ui.add(Slider::new(&mut time_step.cfl, 0.05..=1.0).text("CFL factor λ"));
+        ui.add(
+            Slider::new(&mut time_step.max, 1e-4..=0.02)
+                .logarithmic(true)
+                .text("max Δt (s)"),
+        );
+        time_step.min = time_step.min.min(time_step.max);
+        if time_step != scene.time_step {
+            out.push(Command::Sim(Action::SetTimeStep { time_step }));
+        }
+
+        let mut viscosity = scene.viscosity.clone();
+        ui.add(Slider::new(&mut viscosity.xsph, 0.0..=0.5).text("XSPH viscosity"));
+        ui.add(
+            Slider::new(&mut viscosity.kinematic, 0.0..=0.1)
+                .logarithmic(true)
+                .smallest_positive(1e-7)
+                .custom_formatter(sci)
+                .custom_parser(|t| t.trim().parse().ok())
+                .text("kinematic ν (m²/s)"),
+        );
+        ui.add(
+            Slider::new(&mut viscosity.boundary_kinematic, 0.0..=0.1)
+                .logarithmic(true)
+                .smallest_positive(1e-7)
+                .custom_formatter(sci)
+                .custom_parser(|t| t.trim().parse().ok())
+                .text("wall ν (m²/s)"),
+        );
+        if viscosity != scene.viscosity {
+            out.push(Command::Sim(Action::SetViscosity { viscosity }));
+        }
+
+        ui.separator();
+        ui.label(egui::RichText::new("World").strong());
+        let mut magnitude = st.mapper.gravity_magnitude();
+        let mut tilt = st.mapper.tilt_deg();
+        let a = ui.add(Slider::new(&mut magnitude, 0.0..=30.0).text("gravity (m/s²)"));
+        let b = ui.add(Slider::new(&mut tilt, -MAX_TILT_DEG..=MAX_TILT_DEG).text("tilt (°)"));
+        if a.changed() || b.changed() {
+            out.push(Command::Sim(st.mapper.set_gravity(magnitude, tilt)));
+        }
+        ui.add(
+            Slider::new(st.time_scale, 0.05..=2.0)
+                .logarithmic(true)
+                .text("time scale"),
+        );
+
+        ui.separator();
+        ui.label(egui::RichText::new("Tools").strong());
+        let (lo, hi) = st.mapper.radius_limits;
+        ui.add(Slider::new(&mut st.mapper.tool_radius, lo..=hi).text("tool radius (m)"));
+        ui.add(
+            Slider::new(
+                &mut st.mapper.pointer_strength,
+                1.0..=MAX_POINTER_ACCELERATION,
+            )
+            .text("push/pull (m/s²)"),
+        );
+        egui::ComboBox::from_label("colouring")
+            .selected_text(st.coloring.label())
+            .show_ui(ui, |ui| {
+                for c in Coloring::ALL {
+                    ui.selectable_value(st.coloring, c, c.label());
+                }
+            });
+    });
+    out
+}
+
+/// Scientific notation for values spanning decades (viscosities).
+fn sci(v: f64, _: std::ops::RangeInclusive<usize>) -> String {
+    if v == 0.0 {
+        "0".into()
+    } else {
+        format!("{v:.1e}")
+    }
+}
