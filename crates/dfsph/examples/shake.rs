@@ -6,7 +6,18 @@ fn main() {
     for (dir, until) in [(1.0, 1.0), (-1.0, 2.0), (0.0, 3.0)] {
         sim.apply(&Action::ShakeTank { direction: dir });
         while sim.time() < until {
-            sim.step();
+            let s = *sim.step();
+            if std::env::var("ALL").is_ok() && s.step % 20 == 0 {
+                println!(
+                    "  t={:.4} dt={:.2e} it={} itv={} vmax={:.2} err={:.3}",
+                    s.time,
+                    s.dt,
+                    s.density_iterations,
+                    s.divergence_iterations,
+                    s.max_speed,
+                    s.max_density_error_pct
+                );
+            }
         }
         let s = sim.stats();
         println!(
