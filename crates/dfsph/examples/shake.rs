@@ -7,7 +7,7 @@ fn main() {
         sim.apply(&Action::ShakeTank { direction: dir });
         while sim.time() < until {
             let s = *sim.step();
-            if std::env::var("ALL").is_ok() && s.step % 20 == 0 {
+            if std::env::var("ALL").is_ok() && s.step.is_multiple_of(20) {
                 println!(
                     "  t={:.4} dt={:.2e} it={} itv={} vmax={:.2} err={:.3}",
                     s.time,
