@@ -132,31 +132,41 @@ impl Simulation {
                 }
             }
             Action::SetSolver { solver } => {
-                let mut scene = self.scene.clone();
-                scene.solver = solver.clone();
-                match scene.validate() {
-                    Ok(()) => self.scene = scene,
-                    Err(_) => out.rejected = Some("invalid solver parameters"),
-                }
+                out.rejected =
+                    self.change_scene(|s| s.solver = solver.clone(), "invalid solver parameters");
             }
             Action::SetViscosity { viscosity } => {
-                let mut scene = self.scene.clone();
-                scene.viscosity = viscosity.clone();
-                match scene.validate() {
-                    Ok(()) => self.scene = scene,
-                    Err(_) => out.rejected = Some("invalid viscosity parameters"),
-                }
+                out.rejected = self.change_scene(
+                    |s| s.viscosity = viscosity.clone(),
+                    "invalid viscosity parameters",
+                );
             }
             Action::SetTimeStep { time_step } => {
-                let mut scene = self.scene.clone();
-                scene.time_step = time_step.clone();
-                match scene.validate() {
-                    Ok(()) => self.scene = scene,
-                    Err(_) => out.rejected = Some("invalid time-step parameters"),
-                }
+                out.rejected = self.change_scene(
+                    |s| s.time_step = time_step.clone(),
+                    "invalid time-step parameters",
+                );
             }
         }
         out
+    }
+
+    /// Apply a parameter change to the scene if the result still validates; otherwise keep
+    /// the scene and return `rejection`.
+    fn change_scene(
+        &mut self,
+        change: impl FnOnce(&mut crate::scene::Scene),
+        rejection: &'static str,
+    ) -> Option<&'static str> {
+        let mut scene = self.scene.clone();
+        change(&mut scene);
+        match scene.validate() {
+            Ok(()) => {
+                self.scene = scene;
+                None
+            }
+            Err(_) => Some(rejection),
+        }
     }
 
     /// The shake drive in force, −1 … 1.
@@ -236,22 +246,68 @@ impl Simulation {
         let r2 = radius * radius;
         let pos = self.fluid.position.clone();
         let removed = self.fluid.retain(|i| (pos[i] - at).length_squared() >= r2);
-        let b = &mut self.boundary;
+        let b = &self.boundary;
         let keep: Vec<bool> = (0..b.len())
             .map(|k| b.body[k] == 0 || (b.position[k] - at).length_squared() >= r2)
             .collect();
-        let walls = keep.iter().filter(|&&k| !k).count();
+        let walls = self.boundary.retain(&keep);
         if walls > 0 {
-            let mut idx = keep.iter();
-            b.position.retain(|_| *idx.next().unwrap());
-            let mut idx = keep.iter();
-            b.velocity.retain(|_| *idx.next().unwrap());
-            let mut idx = keep.iter();
-            b.volume.retain(|_| *idx.next().unwrap());
-            let mut idx = keep.iter();
-            b.body.retain(|_| *idx.next().unwrap());
             self.boundary_changed = true;
         }
         (removed, walls)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene;
+
+    fn sim() -> Simulation {
+        let mut s = scene::builtin("dam-break").unwrap();
+        s.particle_radius = 0.05;
+        Simulation::new(&s).unwrap()
+    }
+
+    #[test]
+    fn erase_removes_fluid_and_drawn_walls_but_not_the_tank() {
+        let mut sim = sim();
+        let wall = sim.apply(&Action::AddWall {
+            polyline: vec![Vec2::new(2.0, 0.5), Vec2::new(3.0, 0.5)],
+        });
+        assert!(wall.boundary_change > 0);
+        let tank_particles = sim.boundary_bodies().iter().filter(|&&b| b == 0).count();
+        let n = sim.fluid_count();
+        let out = sim.apply(&Action::Erase {
+            at: Vec2::new(0.0, 0.0),
+            radius: 0.3,
+        });
+        assert!(out.removed > 0 && sim.fluid_count() == n - out.removed);
+        let out = sim.apply(&Action::Erase {
+            at: Vec2::new(2.5, 0.5),
+            radius: 2.0,
+        });
+        assert_eq!(out.boundary_change, -wall.boundary_change);
+        let tank_after = sim.boundary_bodies().iter().filter(|&&b| b == 0).count();
+        assert_eq!(tank_after, tank_particles);
+        sim.step();
+        assert!(sim.positions().iter().all(|p| p.is_finite()));
+    }
+
+    #[test]
+    fn invalid_parameters_are_refused_and_valid_ones_taken() {
+        let mut sim = sim();
+        let mut solver = sim.scene().solver.clone();
+        solver.max_iterations = 0;
+        let out = sim.apply(&Action::SetSolver { solver });
+        assert_eq!(out.rejected, Some("invalid solver parameters"));
+        assert_eq!(sim.scene().solver.max_iterations, 100);
+        let mut viscosity = sim.scene().viscosity.clone();
+        viscosity.xsph = 0.05;
+        assert_eq!(
+            sim.apply(&Action::SetViscosity { viscosity }).rejected,
+            None
+        );
+        assert_eq!(sim.scene().viscosity.xsph, 0.05);
     }
 }

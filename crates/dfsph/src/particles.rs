@@ -58,13 +58,6 @@ impl FluidParticles {
     pub fn retain(&mut self, mut keep: impl FnMut(usize) -> bool) -> usize {
         let mask: Vec<bool> = (0..self.len()).map(&mut keep).collect();
         let before = self.len();
-        fn filter<T: Copy>(v: &mut Vec<T>, mask: &[bool]) {
-            let mut k = 0;
-            v.retain(|_| {
-                k += 1;
-                mask[k - 1]
-            });
-        }
         filter(&mut self.position, &mask);
         filter(&mut self.velocity, &mask);
         filter(&mut self.id, &mask);
@@ -85,6 +78,12 @@ impl FluidParticles {
         permute(&mut self.pressure_over_rho0, order, &mut scratch.float);
         permute(&mut self.divergence_stiffness, order, &mut scratch.float);
     }
+}
+
+/// Keep the entries of `v` whose `mask` entry is true.
+fn filter<T: Copy>(v: &mut Vec<T>, mask: &[bool]) {
+    let mut keep = mask.iter();
+    v.retain(|_| *keep.next().expect("mask as long as the array"));
 }
 
 /// Reusable buffers for [`FluidParticles::permute`].
@@ -118,6 +117,16 @@ impl BoundaryParticles {
     /// True when there are none.
     pub fn is_empty(&self) -> bool {
         self.position.is_empty()
+    }
+
+    /// Keep the particles whose `keep` entry is true; returns how many were removed.
+    pub fn retain(&mut self, keep: &[bool]) -> usize {
+        let before = self.len();
+        filter(&mut self.position, keep);
+        filter(&mut self.velocity, keep);
+        filter(&mut self.volume, keep);
+        filter(&mut self.body, keep);
+        before - self.len()
     }
 
     /// Reorder every array by `order`.
