@@ -113,7 +113,7 @@ fn run_writes_every_output_file() {
         stats[0].join(","),
         "step,time,dt,n_fluid,density_iterations,divergence_iterations,avg_density_error_pct,\
          max_density_error_pct,max_speed,kinetic_energy,divergence_error_pct,clamped,non_finite,\
-         avg_neighbors,n_boundary"
+         avg_neighbors,n_boundary,retries"
     );
     let rows = &stats[1..];
     assert!(

@@ -12,7 +12,7 @@ use crate::atomic::AtomicFile;
 /// rest follow in this order.
 pub const STATS_HEADER: &str = "step,time,dt,n_fluid,density_iterations,divergence_iterations,\
 avg_density_error_pct,max_density_error_pct,max_speed,kinetic_energy,divergence_error_pct,\
-clamped,non_finite,avg_neighbors,n_boundary";
+clamped,non_finite,avg_neighbors,n_boundary,retries";
 
 /// Streams [`StepStats`] rows to `NAME.tmp` and renames it to `NAME` on
 /// [`StatsCsvWriter::finish`], so a long run does not hold its statistics in memory and a
@@ -35,7 +35,7 @@ impl StatsCsvWriter {
     pub fn push(&mut self, s: &StepStats) -> Result<()> {
         writeln!(
             self.file,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             s.step,
             s.time,
             s.dt,
@@ -51,6 +51,7 @@ impl StatsCsvWriter {
             s.non_finite,
             s.avg_neighbors,
             s.n_boundary,
+            s.retries,
         )
         .with_context(|| format!("cannot write `{}`", self.file.path().display()))?;
         self.rows += 1;
@@ -78,8 +79,9 @@ mod tests {
             "step,time,dt,n_fluid,density_iterations,divergence_iterations,\
              avg_density_error_pct,max_density_error_pct,max_speed,kinetic_energy,"
         ));
-        assert!(STATS_HEADER
-            .ends_with(",divergence_error_pct,clamped,non_finite,avg_neighbors,n_boundary"));
+        assert!(STATS_HEADER.ends_with(
+            ",divergence_error_pct,clamped,non_finite,avg_neighbors,n_boundary,retries"
+        ));
     }
 
     #[test]
@@ -104,6 +106,7 @@ mod tests {
                 clamped: 0,
                 non_finite: 0,
                 avg_neighbors: 12.5,
+                retries: 1,
             })
             .unwrap();
         }
@@ -116,7 +119,7 @@ mod tests {
         assert_eq!(lines[0], STATS_HEADER);
         assert_eq!(
             lines[1],
-            "1,0.005,0.005,200,2,1,0.01,0.5,0.25,1.5,0.05,0,0,12.5,80"
+            "1,0.005,0.005,200,2,1,0.01,0.5,0.25,1.5,0.05,0,0,12.5,80,1"
         );
         let columns = STATS_HEADER.split(',').count();
         assert!(lines.iter().all(|l| l.split(',').count() == columns));

@@ -49,6 +49,10 @@ pub struct StepStats {
     pub non_finite: u32,
     /// Average neighbour count (fluid and boundary) per fluid particle.
     pub avg_neighbors: f64,
+    /// Times this step was redone with half the time step because the first try was unsound
+    /// (density solve at its iteration cap without converging, a non-finite velocity, or a
+    /// particle about to jump more than a particle spacing). `dt` is the one finally taken.
+    pub retries: u32,
 }
 
 /// The state of one running scene.
@@ -80,6 +84,9 @@ pub struct Simulation {
     pub(crate) step_count: u64,
     /// Δt of the previous step (the divergence solve measures its error over it).
     last_dt: f32,
+    /// Velocities and pressures after the divergence solve, to redo the rest of a step.
+    retry_velocity: Vec<Vec2>,
+    retry_pressure: Vec<f32>,
     pub(crate) next_id: u32,
     stats: StepStats,
     total_clamped: u64,
@@ -132,6 +139,8 @@ impl Simulation {
             time: 0.0,
             step_count: 0,
             last_dt: scene.time_step.max as f32,
+            retry_velocity: Vec::new(),
+            retry_pressure: Vec::new(),
             next_id: 0,
             stats: StepStats::default(),
             total_clamped: 0,
@@ -245,11 +254,13 @@ impl Simulation {
         let divergence = p.divergence_solve;
         let density_limits = SolveLimits {
             tolerance_pct: p.density_tolerance_pct,
+            max_error_pct: MAX_DENSITY_ERROR_PCT,
             min_iterations: p.min_iterations,
             max_iterations: p.max_iterations,
         };
         let divergence_limits = SolveLimits {
             tolerance_pct: p.divergence_tolerance_pct,
+            max_error_pct: f64::INFINITY,
             ..density_limits
         };
         let nb = Neighborhood {
@@ -279,46 +290,68 @@ impl Simulation {
             kinematic: v.kinematic as f32,
             boundary_kinematic: v.boundary_kinematic as f32,
         };
-        let dt = self.cfl_time_step();
-        forces::non_pressure_accelerations(
-            &self.kernel,
-            self.volume,
-            dt,
-            self.gravity,
-            viscosity,
-            self.pointer,
-            &mut self.fluid,
-            &self.boundary,
-            &nb,
-        );
-        self.fluid
-            .velocity
-            .par_iter_mut()
-            .zip(self.fluid.acceleration.par_iter())
-            .for_each(|(v, &a)| *v += dt * a);
+        let min_dt = self.scene.time_step.min as f32;
+        let mut dt = self.cfl_time_step();
+        let mut retries = 0u32;
+        self.retry_velocity.clone_from(&self.fluid.velocity);
+        self.retry_pressure
+            .clone_from(&self.fluid.pressure_over_rho0);
+        let density_report = loop {
+            forces::non_pressure_accelerations(
+                &self.kernel,
+                self.volume,
+                dt,
+                self.gravity,
+                viscosity,
+                self.pointer,
+                &mut self.fluid,
+                &self.boundary,
+                &nb,
+            );
+            self.fluid
+                .velocity
+                .par_iter_mut()
+                .zip(self.fluid.acceleration.par_iter())
+                .for_each(|(v, &a)| *v += dt * a);
 
-        let density_report = match method {
-            Method::Dfsph => solver::density_solve(
-                self.volume,
-                dt,
-                warm,
-                &mut self.fluid,
-                &self.boundary,
-                &nb,
-                density_limits,
-                &mut self.solver_scratch,
-            ),
-            Method::Wcsph => solver::wcsph_pressure(
-                self.volume,
-                dt,
-                self.scene.rest_density as f32,
-                p.wcsph_stiffness as f32,
-                p.wcsph_exponent as f32,
-                &mut self.fluid,
-                &self.boundary,
-                &nb,
-                &mut self.solver_scratch,
-            ),
+            let report = match method {
+                Method::Dfsph => solver::density_solve(
+                    self.volume,
+                    dt,
+                    warm,
+                    &mut self.fluid,
+                    &self.boundary,
+                    &nb,
+                    density_limits,
+                    &mut self.solver_scratch,
+                ),
+                Method::Wcsph => solver::wcsph_pressure(
+                    self.volume,
+                    dt,
+                    self.scene.rest_density as f32,
+                    p.wcsph_stiffness as f32,
+                    p.wcsph_exponent as f32,
+                    &mut self.fluid,
+                    &self.boundary,
+                    &nb,
+                    &mut self.solver_scratch,
+                ),
+            };
+            let unconverged = method == Method::Dfsph
+                && report.iterations >= density_limits.max_iterations
+                && (report.avg_error_pct > density_limits.tolerance_pct
+                    || report.max_error_pct > density_limits.max_error_pct);
+            let sound = !unconverged && self.velocities_sound(dt);
+            if sound || retries >= MAX_STEP_RETRIES || dt <= min_dt {
+                break report;
+            }
+            // Redo the step from the divergence-free velocities with half the time step.
+            retries += 1;
+            dt = (0.5 * dt).max(min_dt);
+            self.fluid.velocity.clone_from(&self.retry_velocity);
+            self.fluid
+                .pressure_over_rho0
+                .clone_from(&self.retry_pressure);
         };
 
         // Advection.
@@ -358,8 +391,22 @@ impl Simulation {
             clamped,
             non_finite,
             avg_neighbors,
+            retries,
         };
         &self.stats
+    }
+
+    /// Whether every velocity is finite and no particle would move more than
+    /// [`MAX_STEP_DISPLACEMENT`] particle spacings in a step of `dt`. CFL keeps a normal step
+    /// at a fraction of a spacing, so a larger jump means the pressure solve produced a kick
+    /// the step size cannot carry.
+    fn velocities_sound(&self, dt: f32) -> bool {
+        let limit = MAX_STEP_DISPLACEMENT * self.spacing / dt;
+        let limit2 = limit * limit;
+        self.fluid
+            .velocity
+            .par_iter()
+            .all(|v| v.is_finite() && v.length_squared() <= limit2)
     }
 
     /// CFL condition `Δt = λ·d / v_max` (v_max includes moving walls; WCSPH adds the speed of
@@ -629,6 +676,15 @@ impl Simulation {
         count.saturating_sub(1)
     }
 }
+
+/// The density solve iterates until no particle is compressed by more than this, percent,
+/// besides meeting the scene's average tolerance.
+pub const MAX_DENSITY_ERROR_PCT: f64 = 1.0;
+
+/// How often one step may be redone with half the time step before it is taken as it is.
+pub const MAX_STEP_RETRIES: u32 = 4;
+/// Largest displacement in one step, in particle spacings, before the step is redone.
+pub const MAX_STEP_DISPLACEMENT: f32 = 1.0;
 
 /// How far the tank slides when shaken, m.
 pub const MAX_SHAKE_OFFSET: f32 = 0.4;

@@ -48,41 +48,130 @@ fn fluid_starts_at_rest_density() {
 
 #[test]
 fn hydrostatic_tank_settles_to_the_right_pressure() {
+    // 800 particles. The square lattice the fluid starts on rearranges into the hexagonal
+    // packing SPH prefers (neighbours per particle 9.5 -> 11.5); the sloshing that releases
+    // has died down well before 19 s.
     let s = coarse("hydrostatic", 0.025);
     let mut sim = Simulation::new(&s).unwrap();
     let n0 = sim.fluid_count();
-    while sim.time() < 5.0 {
-        sim.step();
+    let (rho0, g, depth) = (1000.0f64, 9.81f64, 1.0f64);
+    let d = s.spacing();
+    let mut energy_at_2s = None;
+    let mut max_speed_last_second = 0.0f64;
+    // Pressure away from the walls and the free surface, against ρ0 g (H − y) at each
+    // particle's own height, averaged over bands 0.1 m (two spacings) high and over the last
+    // second (every 20th step) to remove particle noise.
+    let mut bands = std::collections::BTreeMap::<i64, (f64, usize)>::new();
+    while sim.time() < 20.0 {
+        let st = *sim.step();
+        if st.time >= 2.0 && energy_at_2s.is_none() {
+            energy_at_2s = Some(st.kinetic_energy);
+        }
+        if st.time >= 19.0 {
+            max_speed_last_second = max_speed_last_second.max(st.max_speed);
+            if st.step.is_multiple_of(20) {
+                let snap = sim.snapshot();
+                for (p, pr) in snap.position.iter().zip(&snap.pressure) {
+                    let (x, y) = (p.x as f64, p.y as f64);
+                    if x > 0.3 && x < 1.7 && y > 0.3 && y < 0.9 {
+                        let e = bands.entry((y / (2.0 * d)).floor() as i64).or_default();
+                        e.0 += *pr as f64 - rho0 * g * (depth - y);
+                        e.1 += 1;
+                    }
+                }
+            }
+        }
     }
     let stats = *sim.stats();
     assert!(stats.avg_density_error_pct <= 0.1, "{stats:?}");
     assert_eq!(sim.total_clamped(), 0);
     assert_eq!(sim.total_non_finite(), 0);
     assert_eq!(sim.fluid_count(), n0);
-    // Pressure away from the walls and the free surface, against ρ0 g (H − y), averaged per
-    // lattice row to remove particle noise.
-    let snap = sim.snapshot();
-    let (rho0, g, depth) = (1000.0, 9.81, 1.0);
-    let d = s.spacing();
-    let mut rows = std::collections::BTreeMap::<i64, (f64, usize)>::new();
-    for (p, pr) in snap.position.iter().zip(&snap.pressure) {
-        let (x, y) = (p.x as f64, p.y as f64);
-        if x > 0.3 && x < 1.7 && y > 0.3 && y < 0.9 {
-            let e = rows.entry((y / d).floor() as i64).or_default();
-            e.0 += *pr as f64;
-            e.1 += 1;
-        }
-    }
-    assert!(rows.len() > 5);
-    for (row, (sum, count)) in rows {
-        let y = (row as f64 + 0.5) * d;
-        let expected = rho0 * g * (depth - y);
-        let got = sum / count as f64;
+    let sqrt_gh = (g * depth).sqrt();
+    assert!(
+        max_speed_last_second < 0.01 * sqrt_gh,
+        "max speed over the last second {max_speed_last_second:.4} m/s, 1 % of sqrt(gH) is {:.4}",
+        0.01 * sqrt_gh
+    );
+    assert!(
+        stats.kinetic_energy < 0.1 * energy_at_2s.unwrap(),
+        "{stats:?}"
+    );
+    assert!(bands.len() >= 5);
+    for (band, (sum, count)) in bands {
+        let error = sum / count as f64;
         assert!(
-            (got - expected).abs() < 0.02 * rho0 * g * depth,
-            "row at y = {y:.3}: p = {got:.0} Pa, expected {expected:.0} Pa"
+            error.abs() < 0.02 * rho0 * g * depth,
+            "band from y = {:.2} m: mean pressure error {error:.0} Pa",
+            band as f64 * 2.0 * d
         );
     }
+}
+
+/// Martin & Moyce (1952), Table 2, column height 2a: (T, Z) with T = t·sqrt(2g/a) and
+/// Z = x_front/a (`shared/validation/martin_moyce_1952_front_n2_a2p25in.csv`).
+const MARTIN_MOYCE_FRONT: [(f64, f64); 11] = [
+    (1.19, 1.44),
+    (1.43, 1.67),
+    (1.63, 1.89),
+    (1.83, 2.11),
+    (1.98, 2.33),
+    (2.20, 2.56),
+    (2.32, 2.78),
+    (2.51, 3.00),
+    (2.65, 3.22),
+    (2.83, 3.44),
+    (2.98, 3.67),
+];
+
+/// Time shift applied to the simulation before comparing with Martin & Moyce: the experiment
+/// released the column by lifting a gate, the simulation releases it instantly. The
+/// validation data's README gives ΔT ≈ 0.1–0.2 as customary; we take 0.2 (about 45 ms for
+/// the 1 m column). Without it the front is 9–17 % ahead.
+const MARTIN_MOYCE_TIME_SHIFT: f64 = 0.2;
+
+#[test]
+fn dam_break_front_follows_martin_and_moyce() {
+    let s = coarse("dam-break", 0.025);
+    let a = 1.0; // column width, m
+    let time_scale = (2.0 * 9.81f64 / a).sqrt();
+    let mut sim = Simulation::new(&s).unwrap();
+    let mut front = vec![(0.0, 1.0)];
+    while sim.time() * time_scale < 3.0 {
+        sim.step();
+        front.push((sim.time() * time_scale, sim.front_position(3).unwrap() / a));
+    }
+    for (t, z) in MARTIN_MOYCE_FRONT {
+        let shifted = t - MARTIN_MOYCE_TIME_SHIFT;
+        let ours = front.iter().find(|p| p.0 >= shifted).unwrap().1;
+        assert!(
+            (ours / z - 1.0).abs() < 0.10,
+            "T = {t}: Z = {ours:.3}, Martin & Moyce {z}"
+        );
+    }
+}
+
+#[test]
+fn an_oversized_time_step_is_redone_not_taken() {
+    // With a 20 ms cap the first steps of a dam break ask the density solve for more than it
+    // can give in 100 iterations; the step must be redone with smaller Δt, not taken broken.
+    let mut s = coarse("dam-break", 0.025);
+    s.time_step.max = 0.02;
+    s.time_step.cfl = 1.0;
+    let mut sim = Simulation::new(&s).unwrap();
+    let mut retried = 0;
+    while sim.time() < 0.5 {
+        let st = *sim.step();
+        retried += st.retries;
+        assert!(st.dt <= 0.02);
+        assert_eq!(st.clamped, 0, "leak at t = {}", st.time);
+        assert_eq!(st.non_finite, 0);
+        if st.retries > 0 {
+            assert!(st.dt < 0.02, "{st:?}");
+        }
+    }
+    assert!(retried > 0, "no step was redone");
+    assert!(sim.positions().iter().all(|p| p.is_finite()));
 }
 
 #[test]
