@@ -24,7 +24,46 @@ pub enum Command {
     Scenes,
     /// Run a scene headless and write statistics and particle snapshots.
     Run(RunArgs),
+    /// Drive a scene with a seeded random sequence of the viewer's actions and check it.
+    #[command(long_about = STRESS_ABOUT)]
+    Stress(StressArgs),
+    /// Run the validation cases against experiments and write DIR/report.md with plots;
+    /// exits with 1 if any check fails.
+    Validate(ValidateArgs),
+    /// The standard benchmark (BENCHMARK.md, docs/PERFORMANCE.md): the dam break at several
+    /// resolutions, with the salva2d peer when built with `--features salva`.
+    Bench(crate::bench::BenchArgs),
+    /// One benchmark row in its own process (used by `bench`).
+    #[command(name = "bench-row", hide = true)]
+    BenchRow(crate::bench::RowArgs),
 }
+
+const STRESS_ABOUT: &str = "\
+Drive a scene with a seeded random sequence of the viewer's actions, for K steps, checking the
+simulation after every action and every step. Prints one summary line; exits with code 1 at the
+first violation, naming it and its step.
+
+Actions (all at full strength, anywhere in and around the tank): shake the tank left and right,
+push and pull with the pointer, pour (up to the viewer's particle budget: the scene's fluid and
+as much again, at least 2,000 more, within max_particles), draw walls through the water, erase,
+tilt and scale gravity (0-30 m/s², ±45°), change viscosity (XSPH 0-0.5, kinematic 0-0.1 m²/s)
+live, change the solver's tolerances (density 0.001-0.5 %, divergence 0.01-10 %, 100-1000
+iterations) and the time step (CFL 0.1-0.6, max Δt 0.25-2.5 ms) live, and reset. (The viewer's
+time scale only changes how many steps a frame takes, which a step-by-step run does not see.)
+
+Violations:
+  - a non-finite position, velocity or statistic, or a particle the solver reset because it
+    became non-finite;
+  - a fluid particle outside the tank (beyond the centre line of its first wall layer, d/2
+    outside the interior);
+  - a fluid particle count that differs from initial + poured − erased, or exceeds the budget;
+  - a particle clamped back into the tank (the wall leaked);
+  - a density error above the bound: the largest single-particle compression after the density
+    solve, (ρ − ρ0)/ρ0, above --density-bound percent (default 5 %) in any step;
+  - a panic in the solver.
+
+With --record FILE the actions are written as they happen (docs/recording.md); `dfsph2d run
+SCENE --replay FILE --out DIR` replays them and checks that it reaches the same final state.";
 
 #[derive(Debug, Args)]
 pub struct ViewArgs {
@@ -41,6 +80,39 @@ pub struct ViewArgs {
     /// When the viewer closes, save the scene and a snapshot into this directory.
     #[arg(long, value_name = "DIR")]
     pub save_on_exit: Option<PathBuf>,
+
+    /// Record every action with the step at which it applies into FILE (JSON lines, see
+    /// docs/recording.md), for `dfsph2d run SCENE --replay FILE`.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub struct StressArgs {
+    /// A built-in scene name (see `dfsph2d scenes`) or the path of a JSON scene file.
+    #[arg(value_name = "SCENE", default_value = "dam-break")]
+    pub scene: String,
+
+    /// Seed of the random action sequence.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub seed: u64,
+
+    /// Steps to run.
+    #[arg(long, value_name = "K", default_value_t = 1000,
+          value_parser = clap::value_parser!(u64).range(1..=100_000_000))]
+    pub steps: u64,
+
+    /// Largest allowed single-particle density error (compression), percent.
+    #[arg(long, value_name = "PCT", default_value = "5", value_parser = positive_percent)]
+    pub density_bound: f64,
+
+    /// Write the actions, with the step at which each applies, into FILE.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
+
+    /// Worker threads (default: one per core).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub threads: Option<u32>,
 }
 
 #[derive(Debug, Args)]
@@ -49,9 +121,15 @@ pub struct RunArgs {
     #[arg(value_name = "SCENE")]
     pub scene: String,
 
-    /// Simulated time to run, in seconds.
-    #[arg(long, value_name = "SECONDS", value_parser = positive_seconds)]
-    pub until: f64,
+    /// Simulated time to run, in seconds (with --replay: by default until the recording ends).
+    #[arg(long, value_name = "SECONDS", value_parser = positive_seconds,
+          required_unless_present = "replay")]
+    pub until: Option<f64>,
+
+    /// Replay the actions recorded in FILE (`view --record`, `stress --record`), each at its
+    /// step, and check that the final state matches the recording's.
+    #[arg(long, value_name = "FILE")]
+    pub replay: Option<PathBuf>,
 
     /// Output directory (created if missing; existing files in it are overwritten).
     #[arg(long, value_name = "DIR")]
@@ -79,6 +157,22 @@ pub struct RunArgs {
     #[arg(long, value_name = "PIXELS", default_value_t = 800,
           value_parser = clap::value_parser!(u32).range(64..=16384))]
     pub png_width: u32,
+}
+
+#[derive(Debug, Args)]
+pub struct ValidateArgs {
+    /// Coarse resolutions and shorter runs (about a minute): a smoke test of the machinery.
+    #[arg(long)]
+    pub quick: bool,
+
+    /// Output directory for report.md and the plots (created if missing; files in it are
+    /// overwritten).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+
+    /// Worker threads (default: one per core).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub threads: Option<u32>,
 }
 
 /// A snapshot file format.
@@ -114,6 +208,21 @@ fn positive_seconds(text: &str) -> Result<f64, String> {
     } else {
         Err(format!(
             "must be a finite number of seconds greater than 0, got {text}"
+        ))
+    }
+}
+
+/// A percentage: a finite number greater than zero.
+fn positive_percent(text: &str) -> Result<f64, String> {
+    let v: f64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{text}` is not a percentage"))?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!(
+            "must be a finite percentage greater than 0, got {text}"
         ))
     }
 }

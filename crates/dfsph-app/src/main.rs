@@ -2,19 +2,31 @@
 //!
 //! ```text
 //! dfsph2d                                   open the viewer on the dam break
-//! dfsph2d view [SCENE] [--exit-after S] [--save-on-exit DIR]
+//! dfsph2d view [SCENE] [--exit-after S] [--save-on-exit DIR] [--record FILE]
 //! dfsph2d scenes                            list built-in scenes
 //! dfsph2d run SCENE --until S --out DIR [--every S] [--format csv,vtk,png] [--threads N]
+//! dfsph2d run SCENE --replay FILE --out DIR [--until S] ...
+//! dfsph2d stress [SCENE] --seed N --steps K [--record FILE] [--density-bound PCT]
+//! dfsph2d validate [--quick] --out DIR      validation report against experiments
+//! dfsph2d bench [--quick] [--json FILE] [--threads N,..] [--sizes 5k,20k,80k,320k] [--plot F]
 //! ```
 //!
 //! Exit codes: 0 success; 2 bad arguments or scene (nothing written), or a simulation that
-//! produced non-finite values; 1 any other failure (I/O while writing, the viewer).
+//! produced non-finite values; 1 any other failure (I/O while writing, the viewer, a failed
+//! validation check, a `stress` violation, a replay that diverged from its recording); 130
+//! stopped by Ctrl-C (files complete up to the last step).
 
+mod bench;
 mod cli;
+mod interrupt;
 mod output;
+mod probes_csv;
+mod replay;
 mod run;
 mod scene_arg;
 mod schedule;
+mod stress;
+mod validate;
 mod view;
 
 use std::process::ExitCode;
@@ -22,7 +34,7 @@ use std::process::ExitCode;
 use clap::Parser;
 use dfsph::{scene, Simulation};
 
-use cli::{Cli, Command, RunArgs, ViewArgs};
+use cli::{Cli, Command, RunArgs, ValidateArgs, ViewArgs};
 use scene_arg::{load_scene, one_line};
 
 /// A failure with its exit code; printed as one `error: ...` line.
@@ -56,6 +68,7 @@ fn main() -> ExitCode {
             scene: None,
             exit_after: None,
             save_on_exit: None,
+            record: None,
         }),
         Some(Command::View(args)) => view(args),
         Some(Command::Scenes) => {
@@ -63,11 +76,18 @@ fn main() -> ExitCode {
             Ok(())
         }
         Some(Command::Run(args)) => run(args),
+        Some(Command::Stress(args)) => stress::command(args),
+        Some(Command::Validate(args)) => validate_cmd(args),
+        Some(Command::Bench(args)) => bench::bench(args).map_err(Failure::input),
+        Some(Command::BenchRow(args)) => bench::run_row(args).map_err(Failure::input),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(f) => {
-            eprintln!("error: {}", one_line(&f.message));
+            // An empty message: the command already said why (`stress`'s summary line).
+            if !f.message.is_empty() {
+                eprintln!("error: {}", one_line(&f.message));
+            }
             ExitCode::from(f.code)
         }
     }
@@ -93,33 +113,79 @@ fn view(args: ViewArgs) -> Result<(), Failure> {
     if let Some(dir) = &args.save_on_exit {
         output::check_output_dir(dir).map_err(Failure::input)?;
     }
-    view::open(scene, args.exit_after, args.save_on_exit).map_err(Failure::runtime)
+    view::open(scene, args.exit_after, args.save_on_exit, args.record).map_err(Failure::runtime)
 }
 
 fn run(args: RunArgs) -> Result<(), Failure> {
     // Everything is validated before the output directory is touched.
-    if let Some(n) = args.threads {
+    let scene = load_scene(&args.scene).map_err(Failure::input)?;
+    let recording = match &args.replay {
+        Some(path) => Some(replay::load(path, &args.scene, &scene).map_err(Failure::input)?),
+        None => None,
+    };
+    // A replay runs with the recording's thread count unless told otherwise: results are
+    // bit-identical only for the same count.
+    let threads = args
+        .threads
+        .map(|n| n as usize)
+        .or(recording.as_ref().map(|r| r.header.threads.clamp(1, 4096)));
+    if let Some(n) = threads {
         rayon::ThreadPoolBuilder::new()
-            .num_threads(n as usize)
+            .num_threads(n)
             .build_global()
             .map_err(|e| Failure::input(format!("cannot start {n} threads: {e}")))?;
     }
-    let scene = load_scene(&args.scene).map_err(Failure::input)?;
+    // A replay starts from the scene exactly as recorded (with the recorder's pour budget).
+    let scene = match &recording {
+        Some(r) => r.header.scene.clone(),
+        None => scene,
+    };
     output::check_output_dir(&args.out).map_err(Failure::input)?;
     let sim = Simulation::new(&scene)
         .map_err(|e| Failure::input(format!("scene `{}`: {e}", args.scene)))?;
     output::create_output_dir(&args.out).map_err(Failure::input)?;
+    interrupt::install();
 
     let plan = run::RunPlan {
         scene,
-        until: args.until,
+        // Without --until a replay runs to the recording's end.
+        until: args.until.unwrap_or(f64::INFINITY),
         every: args.every,
         formats: args.format,
         out: args.out,
         png_width: args.png_width,
     };
-    let outcome = run::execute(&plan, sim).map_err(Failure::runtime)?;
-    println!("{}", outcome.summary(&plan.out));
+    let (outcome, replayed) = match &recording {
+        Some(rec) => {
+            let (outcome, report) =
+                replay::execute(&plan, sim, rec, args.until.is_some()).map_err(Failure::runtime)?;
+            (outcome, Some(report))
+        }
+        None => (run::execute(&plan, sim).map_err(Failure::runtime)?, None),
+    };
+    match &replayed {
+        Some(r) => println!("{}; {}", outcome.summary(&plan.out), r.note),
+        None => println!("{}", outcome.summary(&plan.out)),
+    }
+    if outcome.interrupted {
+        return Err(Failure {
+            code: interrupt::EXIT_CODE,
+            message: format!(
+                "interrupted at step {} (t = {:.4} s); the output up to that step is complete in `{}`",
+                outcome.steps,
+                outcome.time,
+                plan.out.display()
+            ),
+        });
+    }
+    if let Some(why) = replayed.and_then(|r| r.diverged) {
+        if outcome.broke_at.is_none() {
+            return Err(Failure {
+                code: 1,
+                message: why,
+            });
+        }
+    }
     match outcome.broke_at {
         Some((step, time)) => Err(Failure {
             code: 2,
@@ -131,4 +197,47 @@ fn run(args: RunArgs) -> Result<(), Failure> {
         }),
         None => Ok(()),
     }
+}
+
+/// `dfsph2d validate`: run the cases, write the report; exit 1 when a check fails.
+fn validate_cmd(args: ValidateArgs) -> Result<(), Failure> {
+    if let Some(n) = args.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n as usize)
+            .build_global()
+            .map_err(|e| Failure::input(format!("cannot start {n} threads: {e}")))?;
+    }
+    if args.out.exists() && !args.out.is_dir() {
+        return Err(Failure::input(format!(
+            "output directory `{}` exists and is not a directory",
+            args.out.display()
+        )));
+    }
+    std::fs::create_dir_all(&args.out).map_err(|e| {
+        Failure::input(format!(
+            "cannot create output directory `{}`: {e}",
+            args.out.display()
+        ))
+    })?;
+    let outcome = validate::run(&args.out, validate::Settings { quick: args.quick })
+        .map_err(Failure::runtime)?;
+    println!(
+        "validation: {} checks, {} failed ({:.0} s); report: {}",
+        outcome.checks,
+        outcome.failed,
+        outcome.wall_s,
+        outcome.report.display()
+    );
+    if outcome.failed > 0 {
+        return Err(Failure {
+            code: 1,
+            message: format!(
+                "{} of {} validation checks failed; see `{}`",
+                outcome.failed,
+                outcome.checks,
+                outcome.report.display()
+            ),
+        });
+    }
+    Ok(())
 }

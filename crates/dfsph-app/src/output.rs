@@ -59,10 +59,26 @@ pub fn create_output_dir(dir: &Path) -> Result<(), String> {
         .map_err(|e| format!("cannot list `{}`: {e}", particles.display()))?;
     for entry in entries.flatten() {
         let name = entry.file_name();
-        if is_frame_file(&name.to_string_lossy()) {
+        let name = name.to_string_lossy();
+        // `NAME.tmp`: a file a killed run was writing (see `dfsph_io::atomic`).
+        if is_frame_file(name.strip_suffix(".tmp").unwrap_or(&name)) {
             std::fs::remove_file(entry.path()).map_err(|e| {
                 format!("cannot remove old frame `{}`: {e}", entry.path().display())
             })?;
+        }
+    }
+    // Temporary files of a run that was killed (SIGKILL, power loss) while writing them.
+    for tmp in [
+        dir.join("scene.json.tmp"),
+        dir.join("stats.csv.tmp"),
+        dir.join("probes.csv.tmp"),
+        particles.join("index.csv.tmp"),
+        particles.join("particles.pvd.tmp"),
+    ] {
+        match std::fs::remove_file(&tmp) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(format!("cannot remove `{}`: {e}", tmp.display())),
         }
     }
     Ok(())
@@ -104,6 +120,12 @@ impl FrameWriter {
             },
             last_step: None,
         }
+    }
+
+    /// The simulation was rebuilt (a reset in a replay): its step count starts again, so
+    /// the next [`FrameWriter::write`] must not be mistaken for a repeat of the last frame.
+    pub fn new_epoch(&mut self) {
+        self.last_step = None;
     }
 
     /// Frames written so far.
@@ -205,7 +227,11 @@ mod tests {
         std::fs::create_dir_all(&particles).unwrap();
         std::fs::write(particles.join("00007.csv"), "old").unwrap();
         std::fs::write(particles.join("notes.txt"), "mine").unwrap();
+        std::fs::write(particles.join("00008.vtu.tmp"), "partial").unwrap();
+        std::fs::write(dir.path().join("stats.csv.tmp"), "partial").unwrap();
         create_output_dir(dir.path()).unwrap();
+        assert!(!particles.join("00008.vtu.tmp").exists());
+        assert!(!dir.path().join("stats.csv.tmp").exists());
         assert!(!particles.join("00007.csv").exists());
         assert!(particles.join("notes.txt").exists());
     }

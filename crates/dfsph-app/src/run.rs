@@ -12,6 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::cli::Format;
 use crate::output::FrameWriter;
+use crate::probes_csv::ProbesCsvWriter;
 use crate::schedule::{reached, SnapshotSchedule};
 
 /// A validated run: everything was checked before this is built.
@@ -43,6 +44,38 @@ pub struct RunOutcome {
     pub non_finite: u64,
     /// The first step that produced non-finite values, and its time; the run stopped there.
     pub broke_at: Option<(u64, f64)>,
+    /// Ctrl-C (or SIGTERM) stopped the run early; the files are complete up to that step.
+    pub interrupted: bool,
+}
+
+/// Something that acts on the simulation between steps (`run --replay`: a recording).
+pub trait Driver {
+    /// Called before every step: apply what is due. Returns true when the simulation was
+    /// rebuilt (a reset: time and step count start again at 0).
+    fn before_step(&mut self, sim: &mut Simulation) -> Result<bool>;
+    /// True when the run should stop before the next step.
+    fn finished(&self) -> bool;
+    /// Called once after the last step, before the final snapshot. Returns true on a reset.
+    fn after_last_step(&mut self, sim: &mut Simulation) -> Result<bool>;
+    /// Fraction done, for the progress bar, when the driver knows better than `until`.
+    fn progress(&self) -> Option<f64> {
+        None
+    }
+}
+
+/// A plain run: no actions.
+struct NoDriver;
+
+impl Driver for NoDriver {
+    fn before_step(&mut self, _: &mut Simulation) -> Result<bool> {
+        Ok(false)
+    }
+    fn finished(&self) -> bool {
+        false
+    }
+    fn after_last_step(&mut self, _: &mut Simulation) -> Result<bool> {
+        Ok(false)
+    }
 }
 
 impl RunOutcome {
@@ -70,7 +103,17 @@ impl RunOutcome {
 /// Run `plan` on `sim` (built from `plan.scene`). The output directory must exist already
 /// (see [`crate::output::create_output_dir`]). Stops early at the first step that produced
 /// non-finite values, with everything up to and including that step written.
-pub fn execute(plan: &RunPlan, mut sim: Simulation) -> Result<RunOutcome> {
+pub fn execute(plan: &RunPlan, sim: Simulation) -> Result<RunOutcome> {
+    execute_with(plan, sim, &mut NoDriver)
+}
+
+/// [`execute`], with `driver` acting on the simulation between steps. A run stops early, with
+/// every file complete, when Ctrl-C was pressed (see [`crate::interrupt`]).
+pub fn execute_with(
+    plan: &RunPlan,
+    mut sim: Simulation,
+    driver: &mut dyn Driver,
+) -> Result<RunOutcome> {
     let started = Instant::now();
     let progress = progress_bar();
     dfsph_io::write_atomic(plan.out.join("scene.json"), |w| {
@@ -78,21 +121,43 @@ pub fn execute(plan: &RunPlan, mut sim: Simulation) -> Result<RunOutcome> {
         w.write_all(b"\n")
     })?;
     let mut stats = StatsCsvWriter::create(plan.out.join("stats.csv"))?;
+    let mut probes = ProbesCsvWriter::create(plan.out.join("probes.csv"), &sim)?;
+    if let Some(p) = probes.as_mut() {
+        p.push(&sim)?;
+    }
     let mut frames = FrameWriter::new(&plan.out, &plan.formats, &plan.scene, plan.png_width);
     let mut schedule = SnapshotSchedule::new(plan.every);
     frames.write(&sim)?;
 
     let mut broke_at = None;
+    let mut interrupted = false;
     loop {
+        if crate::interrupt::requested() {
+            interrupted = true;
+            break;
+        }
+        if driver.finished() {
+            break;
+        }
+        if driver.before_step(&mut sim)? {
+            // Reset: simulated time starts again at 0; snapshot the new start.
+            frames.new_epoch();
+            schedule = SnapshotSchedule::new(plan.every);
+            frames.write(&sim)?;
+        }
         let s = *sim.step();
         stats.push(&s)?;
+        if let Some(p) = probes.as_mut() {
+            p.push(&sim)?;
+        }
         if s.non_finite > 0 {
             broke_at = Some((s.step, s.time));
         }
         if schedule.due(s.time, s.dt) {
             frames.write(&sim)?;
         }
-        progress.set_position(((s.time / plan.until).min(1.0) * 1000.0) as u64);
+        let done = driver.progress().unwrap_or(s.time / plan.until);
+        progress.set_position((done.min(1.0) * 1000.0) as u64);
         progress.set_message(format!(
             "t = {:.3}/{} s, step {}, {} frames",
             s.time,
@@ -104,9 +169,15 @@ pub fn execute(plan: &RunPlan, mut sim: Simulation) -> Result<RunOutcome> {
             break;
         }
     }
+    if !interrupted && driver.after_last_step(&mut sim)? {
+        frames.new_epoch();
+    }
     frames.write(&sim)?;
     frames.finish()?;
     stats.finish()?;
+    if let Some(p) = probes {
+        p.finish()?;
+    }
     progress.finish_and_clear();
 
     let last = sim.stats();
@@ -121,6 +192,7 @@ pub fn execute(plan: &RunPlan, mut sim: Simulation) -> Result<RunOutcome> {
         clamped: sim.total_clamped(),
         non_finite: sim.total_non_finite(),
         broke_at,
+        interrupted,
     })
 }
 

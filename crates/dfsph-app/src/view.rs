@@ -6,10 +6,16 @@ use anyhow::Result;
 use dfsph::Scene;
 
 /// Open the viewer on `scene`; returns when the window closes.
-pub fn open(scene: Scene, exit_after: Option<f64>, save_on_exit: Option<PathBuf>) -> Result<()> {
+pub fn open(
+    scene: Scene,
+    exit_after: Option<f64>,
+    save_on_exit: Option<PathBuf>,
+    record: Option<PathBuf>,
+) -> Result<()> {
     dfsph_viewer::run(dfsph_viewer::ViewerOptions {
         scene,
         exit_after,
         save_on_exit,
+        record,
     })
 }

@@ -8,7 +8,9 @@
 //!    OpenGL, finds the window by its title, focuses it (there is no window manager: keys
 //!    are dropped without focus), holds `d` for 2 s and then `a` for 2 s;
 //! 3. runs a second viewer the same way and leaves it alone;
-//! 4. checks both runs' `particles.csv`, `session.json` and `screenshot.png`.
+//! 4. checks both runs' `particles.csv`, `session.json` and `screenshot.png`;
+//! 5. replays the stirred run's `--record` file with `dfsph2d run --replay` and checks that
+//!    it reaches the same final state.
 //!
 //! The scene is the hydrostatic tank rather than the dam break: untouched, its water stays at
 //! rest whatever the frame rate, so "the stirred water moves and the untouched water does not"
@@ -129,6 +131,8 @@ fn run_viewer(display: &str, dir: &Path, stir: bool) {
         .args(["view", SCENE, "--exit-after", &EXIT_AFTER_S.to_string()])
         .arg("--save-on-exit")
         .arg(dir)
+        .arg("--record")
+        .arg(dir.with_extension("jsonl"))
         .env("DISPLAY", display)
         .env_remove("WAYLAND_DISPLAY")
         .env("LIBGL_ALWAYS_SOFTWARE", "1")
@@ -365,4 +369,21 @@ fn stirring_the_tank_under_xvfb_moves_the_water() {
 
     check_screenshot(&stirred);
     check_screenshot(&untouched);
+
+    // The stirred session, recorded, replays headless to the very same final state.
+    let replayed = tmp.path().join("replayed");
+    let out = Command::new(env!("CARGO_BIN_EXE_dfsph2d"))
+        .args(["run", SCENE, "--every", "100", "--replay"])
+        .arg(stirred.with_extension("jsonl"))
+        .arg("--out")
+        .arg(&replayed)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    eprintln!("{stdout}");
+    assert!(
+        out.status.success() && stdout.contains("final state matches the recording"),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }

@@ -8,6 +8,7 @@ use std::rc::Rc;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context as _};
+use dfsph::recording::{End, Header, Recorder};
 use dfsph::scene::BUILTIN_SCENES;
 use dfsph::{Action, Scene, Simulation, StepStats};
 use eframe::egui::{self, vec2, Color32, Sense, Stroke, ViewportCommand};
@@ -50,6 +51,30 @@ struct LoggedAction {
     action: Action,
 }
 
+/// `view --record FILE`: the session's actions, each with the number of steps taken before
+/// it, written as they happen (see [`dfsph::recording`]).
+pub struct SessionRecorder {
+    path: PathBuf,
+    recorder: Recorder<std::io::BufWriter<std::fs::File>>,
+}
+
+impl SessionRecorder {
+    /// Create `path` and write the header for a session on `scene` (with the viewer's pour
+    /// budget, as the simulation will run it).
+    pub fn create(path: &std::path::Path, scene: &Scene) -> anyhow::Result<Self> {
+        let scene = budgeted_scene(scene.clone(), scene.max_particles);
+        let header = Header::new("view", rayon::current_num_threads(), &scene);
+        let file = std::fs::File::create(path)
+            .with_context(|| format!("cannot create recording `{}`", path.display()))?;
+        let recorder = Recorder::new(std::io::BufWriter::new(file), &header)
+            .with_context(|| format!("cannot write recording `{}`", path.display()))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            recorder,
+        })
+    }
+}
+
 /// The viewer.
 pub struct ViewerApp {
     sim: Simulation,
@@ -77,6 +102,9 @@ pub struct ViewerApp {
     exit: Option<ExitPlan>,
     failures: Failures,
     log: Vec<LoggedAction>,
+    /// Steps taken since the window opened, resets included (the recording's clock).
+    session_steps: u64,
+    recorder: Option<SessionRecorder>,
 }
 
 impl ViewerApp {
@@ -119,7 +147,31 @@ impl ViewerApp {
             exit,
             failures,
             log: Vec::new(),
+            session_steps: 0,
+            recorder: None,
         })
+    }
+
+    /// Record the session into `recorder` (`view --record`).
+    pub fn with_recorder(mut self, recorder: Option<SessionRecorder>) -> Self {
+        if let Some(r) = &recorder {
+            self.set_status(format!("recording to {}", r.path.display()));
+        }
+        self.recorder = recorder;
+        self
+    }
+
+    /// Append an applied action to the recording; on a write error, report it once and stop
+    /// recording.
+    fn record_action(&mut self, action: &Action) {
+        let Some(rec) = &mut self.recorder else {
+            return;
+        };
+        if let Err(e) = rec.recorder.record(self.session_steps, action) {
+            let path = rec.path.display().to_string();
+            self.recorder = None;
+            self.fail(anyhow!("recording to `{path}` stopped: {e}"));
+        }
     }
 
     fn set_status(&mut self, msg: impl Into<String>) {
@@ -133,7 +185,7 @@ impl ViewerApp {
 
     /// Replace the simulation (reset, scene change, new radius), keeping the old one when
     /// the new scene is rejected.
-    fn load(&mut self, ctx: &egui::Context, scene: Scene, requested_max_particles: usize) {
+    fn load(&mut self, ctx: &egui::Context, scene: Scene, requested_max_particles: usize) -> bool {
         match build_simulation(scene, requested_max_particles) {
             Ok(sim) => {
                 self.sim = sim;
@@ -144,11 +196,21 @@ impl ViewerApp {
                 self.clock.reset();
                 self.history.clear();
                 ctx.send_viewport_cmd(ViewportCommand::Title(window_title(self.sim.scene())));
+                true
             }
             Err(e) => {
                 self.radius_edit = self.sim.scene().particle_radius;
                 self.set_status(format!("scene rejected: {e:#}"));
+                false
             }
+        }
+    }
+
+    /// Load a different scene (or radius); recorded as a reset to that scene.
+    fn load_other(&mut self, ctx: &egui::Context, scene: Scene, requested_max_particles: usize) {
+        if self.load(ctx, scene, requested_max_particles) {
+            let scene = Box::new(self.sim.scene().clone());
+            self.record_action(&Action::Reset { scene: Some(scene) });
         }
     }
 
@@ -164,6 +226,7 @@ impl ViewerApp {
                 {
                     self.set_status("particle budget reached");
                 }
+                self.record_action(&action);
                 self.log.push(LoggedAction {
                     time: self.sim.time(),
                     action,
@@ -176,23 +239,26 @@ impl ViewerApp {
             Command::Step => {
                 self.paused = true;
                 let s = *self.sim.step();
+                self.session_steps += 1;
                 self.record(&[s]);
             }
             Command::Reset => {
                 let scene = self.sim.scene().clone();
-                self.load(ctx, scene, self.requested_max_particles);
+                if self.load(ctx, scene, self.requested_max_particles) {
+                    self.record_action(&Action::Reset { scene: None });
+                }
             }
             Command::LoadScene(i) => {
                 if let Some(b) = BUILTIN_SCENES.get(i) {
                     let scene = b.scene();
                     let max = scene.max_particles;
-                    self.load(ctx, scene, max);
+                    self.load_other(ctx, scene, max);
                 }
             }
             Command::SetParticleRadius(r) => {
                 let mut scene = self.sim.scene().clone();
                 scene.particle_radius = r;
-                self.load(ctx, scene, self.requested_max_particles);
+                self.load_other(ctx, scene, self.requested_max_particles);
             }
             Command::CycleColoring => self.coloring = self.coloring.next(),
             Command::Screenshot => {
@@ -311,13 +377,16 @@ impl ViewerApp {
 
 /// A simulation for `scene` with the viewer's pour budget: room for the scene's fluid and as
 /// much again (at least 2,000 more), within the scene's own `max_particles`.
-fn build_simulation(
-    mut scene: Scene,
-    requested_max_particles: usize,
-) -> anyhow::Result<Simulation> {
+fn build_simulation(scene: Scene, requested_max_particles: usize) -> anyhow::Result<Simulation> {
+    let scene = budgeted_scene(scene, requested_max_particles);
+    Simulation::new(&scene).map_err(|e| anyhow!("scene `{}`: {e}", scene.name))
+}
+
+/// `scene` with the viewer's pour budget in `max_particles` (see [`build_simulation`]).
+pub fn budgeted_scene(mut scene: Scene, requested_max_particles: usize) -> Scene {
     let n = scene.fluid_particle_count();
     scene.max_particles = requested_max_particles.min((2 * n).max(n + 2000)).max(n);
-    Simulation::new(&scene).map_err(|e| anyhow!("scene `{}`: {e}", scene.name))
+    scene
 }
 
 /// The window title; always contains "dfsph2d" (the Xvfb test finds the window by it).
@@ -326,6 +395,20 @@ pub fn window_title(scene: &Scene) -> String {
 }
 
 impl eframe::App for ViewerApp {
+    /// The window is closing: end the recording with the session's length and a
+    /// fingerprint of the final state.
+    fn on_exit(&mut self, _gl: Option<&eframe::glow::Context>) {
+        if let Some(rec) = self.recorder.take() {
+            let end = End::of(self.session_steps, &self.sim);
+            if let Err(e) = rec.recorder.finish(&end) {
+                self.fail(anyhow!(
+                    "cannot finish recording `{}`: {e}",
+                    rec.path.display()
+                ));
+            }
+        }
+    }
+
     fn update(&mut self, ctx: &egui::Context, _frame: &mut eframe::Frame) {
         let now = Instant::now();
         let frame_seconds = self.last_frame.map_or(0.0, |l| (now - l).as_secs_f64());
@@ -409,6 +492,7 @@ impl eframe::App for ViewerApp {
                 steps.push(s);
                 s.dt
             });
+            self.session_steps += steps.len() as u64;
             self.steps_per_second
                 .add(report.steps as f64, frame_seconds);
             self.sim_rate.add(report.simulated, frame_seconds);

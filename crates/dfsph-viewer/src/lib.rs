@@ -39,6 +39,9 @@ pub struct ViewerOptions {
     /// pressure`), `screenshot.png` and `session.json` (run statistics and the applied
     /// actions) into this directory.
     pub save_on_exit: Option<PathBuf>,
+    /// Record every action with the step at which it applies into this file (JSON lines,
+    /// `docs/recording.md`), for `dfsph2d run SCENE --replay FILE`.
+    pub record: Option<PathBuf>,
 }
 
 impl ViewerOptions {
@@ -48,6 +51,7 @@ impl ViewerOptions {
             scene,
             exit_after: None,
             save_on_exit: None,
+            record: None,
         }
     }
 }
@@ -79,6 +83,11 @@ pub fn run(opts: ViewerOptions) -> anyhow::Result<()> {
             .map_err(|e| anyhow!("cannot create {}: {e}", dir.display()))?;
     }
 
+    let recorder = match &opts.record {
+        Some(path) => Some(app::SessionRecorder::create(path, &opts.scene)?),
+        None => None,
+    };
+
     let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title(app::window_title(&opts.scene))
@@ -97,6 +106,7 @@ pub fn run(opts: ViewerOptions) -> anyhow::Result<()> {
             native,
             Box::new(move |cc| {
                 app::ViewerApp::new(cc, opts, app_failures)
+                    .map(|a| a.with_recorder(recorder))
                     .map(|a| Box::new(a) as Box<dyn eframe::App>)
                     .map_err(Into::into)
             }),

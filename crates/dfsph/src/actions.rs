@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 use crate::boundary::{BodyId, BoundarySamples};
 use crate::forces::PointerForce;
 use crate::neighbors::Grid;
-use crate::scene::{SolverParams, TimeStepParams, ViscosityParams};
+use crate::scene::{Scene, SolverParams, TimeStepParams, ViscosityParams};
 use crate::simulation::Simulation;
 
 /// One user action. Held actions (`ShakeTank`, `Push`) stay in force until replaced.
@@ -49,7 +49,19 @@ pub enum Action {
     SetViscosity { viscosity: ViscosityParams },
     /// Replace the time-step parameters.
     SetTimeStep { time_step: TimeStepParams },
+    /// Start over: rebuild the simulation from `scene`, or, without one, from the current
+    /// scene (which keeps parameter and gravity changes made since, as the viewer's `r` key
+    /// does). Time and step count restart at 0; shaking, the pointer, poured fluid and drawn
+    /// walls are gone. The outcome counts every old fluid particle as removed and every new
+    /// one as added.
+    Reset {
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        scene: Option<Box<Scene>>,
+    },
 }
+
+/// Most boundary particles one drawn wall may take ([`Action::AddWall`]).
+pub const MAX_WALL_PARTICLES: usize = 1_000_000;
 
 /// What an action changed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -114,6 +126,9 @@ impl Simulation {
             Action::AddWall { polyline } => {
                 if polyline.len() < 2 || polyline.iter().any(|p| !p.is_finite()) {
                     out.rejected = Some("a wall needs at least two finite points");
+                } else if !self.wall_fits(polyline) {
+                    out.rejected =
+                        Some("a wall must stay near the tank and within its length budget");
                 } else if self.bodies.len() >= BodyId::MAX as usize {
                     out.rejected = Some("too many walls");
                 } else {
@@ -146,6 +161,22 @@ impl Simulation {
                     |s| s.time_step = time_step.clone(),
                     "invalid time-step parameters",
                 );
+            }
+            Action::Reset { scene } => {
+                let scene = match scene {
+                    Some(scene) => scene.as_ref(),
+                    None => &self.scene,
+                };
+                match Simulation::new(scene) {
+                    Ok(sim) => {
+                        out.removed = self.fluid.len();
+                        out.added = sim.fluid_count();
+                        out.boundary_change =
+                            sim.boundary_positions().len() as isize - self.boundary.len() as isize;
+                        *self = sim;
+                    }
+                    Err(_) => out.rejected = Some("invalid scene"),
+                }
             }
         }
         out
@@ -219,6 +250,18 @@ impl Simulation {
             self.fluid.push(p, velocity, id);
         }
         sites.len()
+    }
+
+    /// A drawn wall may start or end outside the tank, but not farther out than the tank is
+    /// large, and may take at most [`MAX_WALL_PARTICLES`] boundary particles: a wall from a
+    /// corrupt or hostile recording must not exhaust memory.
+    fn wall_fits(&self, polyline: &[Vec2]) -> bool {
+        let (lo, hi) = self.tank_interior();
+        let size = hi - lo;
+        let near = |p: &Vec2| p.cmpge(lo - size).all() && p.cmple(hi + size).all();
+        let length: f32 = polyline.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+        let samples = 2.0 * (length / self.spacing + polyline.len() as f32);
+        polyline.iter().all(near) && samples <= MAX_WALL_PARTICLES as f32
     }
 
     /// Add a drawn wall; returns (fluid removed, boundary particles added).
@@ -309,5 +352,64 @@ mod tests {
             None
         );
         assert_eq!(sim.scene().viscosity.xsph, 0.05);
+    }
+
+    #[test]
+    fn reset_rebuilds_from_the_current_or_a_given_scene() {
+        let mut sim = sim();
+        let n = sim.fluid_count();
+        let gravity = Vec2::new(1.0, -9.0);
+        sim.apply(&Action::SetGravity { gravity });
+        sim.apply(&Action::Erase {
+            at: Vec2::new(0.2, 0.2),
+            radius: 0.3,
+        });
+        for _ in 0..5 {
+            sim.step();
+        }
+        let m = sim.fluid_count();
+        let out = sim.apply(&Action::Reset { scene: None });
+        assert_eq!((out.removed, out.added, out.rejected), (m, n, None));
+        assert_eq!(
+            (sim.step_count(), sim.time(), sim.fluid_count()),
+            (0, 0.0, n)
+        );
+        assert_eq!(sim.gravity(), gravity, "parameter changes survive a reset");
+
+        let mut other = scene::builtin("hydrostatic").unwrap();
+        other.particle_radius = 0.05;
+        let out = sim.apply(&Action::Reset {
+            scene: Some(Box::new(other.clone())),
+        });
+        assert_eq!(out.added, other.fluid_particle_count());
+        assert_eq!(sim.scene(), &other);
+
+        let mut bad = other.clone();
+        bad.particle_radius = -1.0;
+        let out = sim.apply(&Action::Reset {
+            scene: Some(Box::new(bad)),
+        });
+        assert_eq!(out.rejected, Some("invalid scene"));
+        assert_eq!(sim.scene(), &other);
+    }
+
+    #[test]
+    fn actions_round_trip_through_json() {
+        let actions = [
+            Action::Reset { scene: None },
+            Action::Push {
+                at: Vec2::new(0.1, 2.0 / 3.0),
+                radius: 0.2,
+                strength: -80.0,
+            },
+        ];
+        for a in actions {
+            let text = serde_json::to_string(&a).unwrap();
+            assert_eq!(serde_json::from_str::<Action>(&text).unwrap(), a, "{text}");
+        }
+        assert_eq!(
+            serde_json::to_string(&Action::Reset { scene: None }).unwrap(),
+            r#"{"action":"reset"}"#
+        );
     }
 }

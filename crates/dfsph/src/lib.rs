@@ -22,6 +22,8 @@ pub mod forces;
 pub mod kernel;
 pub mod neighbors;
 pub mod particles;
+pub mod probes;
+pub mod recording;
 pub mod scene;
 pub mod simulation;
 pub mod solver;

@@ -5,6 +5,8 @@
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::probes::Probe;
+
 /// A point or vector in metres (or m/s², for gravity), as `[x, y]` in JSON.
 pub type Point = [f64; 2];
 
@@ -38,6 +40,9 @@ pub struct Scene {
     /// Upper bound on the number of fluid particles, the scene's own and those poured in
     /// later; a scene whose blocks hold more is rejected.
     pub max_particles: usize,
+    /// Pressure probes and water-level gauges, read every step into `probes.csv` by
+    /// `dfsph2d run` (see [`crate::probes`]). Empty by default.
+    pub probes: Vec<Probe>,
 }
 
 /// The tank interior `[min, max]` in metres.
@@ -157,6 +162,7 @@ impl Default for Scene {
             time_step: TimeStepParams::default(),
             viscosity: ViscosityParams::default(),
             max_particles: 1_000_000,
+            probes: Vec::new(),
         }
     }
 }
@@ -196,6 +202,10 @@ impl Default for ViscosityParams {
         }
     }
 }
+
+/// Most boundary particles the obstacles of a scene may take together (each is a few dozen
+/// bytes plus its neighbour lists): a scene over this is rejected as asking for too much memory.
+pub const MAX_OBSTACLE_PARTICLES: usize = 10_000_000;
 
 /// Why a scene was rejected. The message names the offending key (`solver.max_iterations`,
 /// `fluid[1].max`, ...).
@@ -436,6 +446,57 @@ impl Scene {
             }
         }
 
+        // Obstacles beyond the tank never meet the fluid, and far-away coordinates (typos,
+        // fuzzed files) would be sampled with billions of boundary particles: every corner
+        // and point must lie within one kernel support h of the tank, and all obstacles
+        // together within the boundary-particle budget.
+        let margin = self.support();
+        let mut boundary_estimate = 0.0;
+        for (i, o) in self.obstacles.iter().enumerate() {
+            let key = format!("obstacles[{i}]");
+            let (points, estimate): (Vec<(String, Point)>, f64) = match o {
+                Obstacle::Rect { min, max } => (
+                    vec![(format!("{key}.min"), *min), (format!("{key}.max"), *max)],
+                    4.0 * ((max[0] - min[0]) + (max[1] - min[1])) / d,
+                ),
+                Obstacle::Polyline { points } => (
+                    points
+                        .iter()
+                        .enumerate()
+                        .map(|(k, p)| (format!("{key}.points[{k}]"), *p))
+                        .collect(),
+                    2.0 * points
+                        .windows(2)
+                        .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]) / d + 1.0)
+                        .sum::<f64>(),
+                ),
+            };
+            for (k, p) in &points {
+                for (axis, &v) in p.iter().enumerate() {
+                    let (lo, hi) = (self.tank.min[axis], self.tank.max[axis]);
+                    if v < lo - margin || v > hi + margin {
+                        return Err(invalid(
+                            format!("{k}[{axis}]"),
+                            format!(
+                                "{v} lies outside the tank ({lo} to {hi}, give or take the \
+                                 kernel support h = {margin} m)"
+                            ),
+                        ));
+                    }
+                }
+            }
+            boundary_estimate += estimate;
+        }
+        if boundary_estimate > MAX_OBSTACLE_PARTICLES as f64 {
+            return Err(invalid(
+                "obstacles",
+                format!(
+                    "the obstacles would take about {boundary_estimate:.3e} boundary particles, \
+                     more than the budget of {MAX_OBSTACLE_PARTICLES}"
+                ),
+            ));
+        }
+
         let s = &self.solver;
         positive("solver.density_tolerance_pct", s.density_tolerance_pct)?;
         positive(
@@ -517,6 +578,7 @@ impl Scene {
                 format!("{} exceeds the hard limit of 50000000", self.max_particles),
             ));
         }
+        crate::probes::validate(self)?;
         Ok(())
     }
 }

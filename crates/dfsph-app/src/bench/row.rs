@@ -1,0 +1,240 @@
+//! One benchmark row, run by the hidden `dfsph2d bench-row` in its own process.
+
+use std::time::{Duration, Instant};
+
+use dfsph::neighbors::Grid;
+use dfsph::scene::{self, Method, Scene, TimeStepParams};
+use dfsph::{Simulation, Vec2};
+
+use super::{Code, Row, RowArgs};
+
+/// XSPH coefficient of both codes (dimensionless; our scene default).
+pub const XSPH: f64 = 0.01;
+/// A particle is part of the front when it has at least this many fluid neighbours.
+pub const FRONT_NEIGHBORS: usize = 3;
+/// Time at which the front is also recorded, s.
+pub const FRONT_CHECK_TIME: f64 = 0.4;
+
+/// Run one row and print it as one JSON line on stdout.
+pub fn run_row(args: RowArgs) -> Result<(), String> {
+    if let Some(n) = args.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n as usize)
+            .build_global()
+            .map_err(|e| format!("cannot start {n} threads: {e}"))?;
+    }
+    let baseline = proc_status_bytes("VmRSS").unwrap_or(0);
+    let mut row = match args.code {
+        Code::Dfsph2d => run_dfsph(&args)?,
+        #[cfg(feature = "salva")]
+        Code::Salva2d => super::salva::run(&args)?,
+        #[cfg(not(feature = "salva"))]
+        Code::Salva2d => return Err("salva2d is not compiled into this binary".into()),
+    };
+    row.peak_rss_bytes = proc_status_bytes("VmHWM").unwrap_or(0);
+    row.baseline_rss_bytes = baseline;
+    row.bytes_per_particle =
+        row.peak_rss_bytes.saturating_sub(baseline) as f64 / row.n.max(1) as f64;
+    println!("{}", serde_json::to_string(&row).expect("a row serialises"));
+    Ok(())
+}
+
+/// The benchmark scene: the built-in dam break at spacing `d` with BENCHMARK.md's solver
+/// settings.
+pub fn bench_scene(d: f64) -> Scene {
+    let mut scene = scene::builtin("dam-break").expect("the dam break is built in");
+    scene.particle_radius = 0.5 * d;
+    scene.solver.method = Method::Dfsph;
+    scene.solver.density_tolerance_pct = 0.01;
+    scene.solver.divergence_tolerance_pct = 0.1;
+    scene.solver.min_iterations = 2;
+    scene.solver.max_iterations = 100;
+    scene.solver.divergence_solve = true;
+    scene.solver.warm_start = true;
+    // Our CFL factor multiplies the spacing d (Δt = cfl·d/v_max), as in BENCHMARK.md.
+    scene.time_step = TimeStepParams {
+        cfl: 0.2,
+        min: 1.0e-5,
+        max: 5.0e-3,
+    };
+    scene.viscosity.xsph = XSPH;
+    scene.viscosity.kinematic = 0.0;
+    scene.viscosity.boundary_kinematic = 0.0;
+    scene
+}
+
+fn run_dfsph(args: &RowArgs) -> Result<Row, String> {
+    let scene = bench_scene(args.spacing);
+    let setup = Instant::now();
+    let mut sim = Simulation::new(&scene).map_err(|e| format!("benchmark scene: {e}"))?;
+    let setup_seconds = setup.elapsed().as_secs_f64();
+    let mut progress = Progress::new(Code::Dfsph2d, &args.case, args.until);
+
+    let (mut density_its, mut divergence_its, mut steps) = (0u64, 0u64, 0u64);
+    let mut front_at_check = None;
+    let mut untimed = Duration::ZERO;
+    let start = Instant::now();
+    while sim.time() < args.until - 1.0e-9 {
+        let s = sim.step();
+        density_its += s.density_iterations as u64;
+        divergence_its += s.divergence_iterations as u64;
+        steps += 1;
+        if front_at_check.is_none() && s.time >= FRONT_CHECK_TIME {
+            let t = Instant::now();
+            front_at_check = sim.front_position(FRONT_NEIGHBORS);
+            untimed += t.elapsed();
+        }
+        progress.tick(sim.time(), steps);
+    }
+    let wall = (start.elapsed() - untimed).as_secs_f64();
+    let n = sim.fluid_count();
+    let mut row = base_row(Code::Dfsph2d, args, n, sim.boundary_positions().len());
+    row.setup_seconds = setup_seconds;
+    row.sim_seconds = sim.time();
+    row.dt_rule = format!(
+        "CFL {}*d/v_max in [{:e}, {:e}] s",
+        scene.time_step.cfl, scene.time_step.min, scene.time_step.max
+    );
+    row.avg_density_iterations = Some(density_its as f64 / steps.max(1) as f64);
+    row.avg_divergence_iterations = Some(divergence_its as f64 / steps.max(1) as f64);
+    row.front_x = sim.front_position(FRONT_NEIGHBORS).unwrap_or(0.0);
+    row.front_x_at_0_4 = front_at_check;
+    row.leaked = sim.total_clamped();
+    row.non_finite = sim.total_non_finite();
+    row.finish_timing(wall, steps);
+    Ok(row)
+}
+
+impl Row {
+    /// Fill the derived timing columns.
+    pub fn finish_timing(&mut self, wall: f64, steps: u64) {
+        self.wall_seconds = wall;
+        self.wall_seconds_runs = vec![wall];
+        self.steps = steps;
+        self.mean_dt = self.sim_seconds / steps.max(1) as f64;
+        self.particle_steps_per_second = self.n as f64 * steps as f64 / wall.max(1.0e-12);
+        self.ns_per_particle_step = 1.0e9 / self.particle_steps_per_second.max(1.0e-12);
+        self.wall_per_sim_second = wall / self.sim_seconds.max(1.0e-12);
+    }
+}
+
+/// A row with the run's identity filled in and the measurements zeroed.
+pub fn base_row(code: Code, args: &RowArgs, n: usize, n_boundary: usize) -> Row {
+    Row {
+        code,
+        case: args.case.clone(),
+        n,
+        n_boundary,
+        spacing: args.spacing,
+        sim_seconds: 0.0,
+        wall_seconds: 0.0,
+        setup_seconds: 0.0,
+        steps: 0,
+        mean_dt: 0.0,
+        dt_rule: String::new(),
+        particle_steps_per_second: 0.0,
+        ns_per_particle_step: 0.0,
+        wall_per_sim_second: 0.0,
+        avg_density_iterations: None,
+        avg_divergence_iterations: None,
+        peak_rss_bytes: 0,
+        baseline_rss_bytes: 0,
+        bytes_per_particle: 0.0,
+        threads: rayon::current_num_threads(),
+        front_x: 0.0,
+        front_x_at_0_4: None,
+        leaked: 0,
+        non_finite: 0,
+        xsph: XSPH,
+        float: "f32".into(),
+        cpu: cpu_model(),
+        compiled_simd: compiled_simd(),
+        wall_seconds_runs: Vec::new(),
+    }
+}
+
+/// The front as [`Simulation::front_position`] measures it, for any particle set: the largest
+/// x of a particle with at least [`FRONT_NEIGHBORS`] neighbours closer than `support`. Used for
+/// the salva2d rows.
+#[cfg_attr(not(feature = "salva"), allow(dead_code))]
+pub fn front_of(positions: &[Vec2], support: f32, tank_min_x: f32) -> Option<f64> {
+    let mut grid = Grid::new(support);
+    grid.build(positions);
+    positions
+        .iter()
+        .filter(|&&p| {
+            let mut count = 0usize;
+            grid.for_each_near(p, |_, _| count += 1);
+            count.saturating_sub(1) >= FRONT_NEIGHBORS
+        })
+        .map(|p| (p.x - tank_min_x) as f64)
+        .fold(None, |m: Option<f64>, x| Some(m.map_or(x, |m| m.max(x))))
+}
+
+/// Progress on stderr, every few seconds of wall time.
+pub struct Progress {
+    label: String,
+    until: f64,
+    start: Instant,
+    last: Instant,
+}
+
+impl Progress {
+    pub fn new(code: Code, case: &str, until: f64) -> Self {
+        let now = Instant::now();
+        Self {
+            label: format!("{} {case}", code.name()),
+            until,
+            start: now,
+            last: now,
+        }
+    }
+
+    pub fn tick(&mut self, time: f64, steps: u64) {
+        if self.last.elapsed() >= Duration::from_secs(5) {
+            self.last = Instant::now();
+            eprintln!(
+                "  {}: t = {time:.3} / {} s, {steps} steps, {:.0} s",
+                self.label,
+                self.until,
+                self.start.elapsed().as_secs_f64()
+            );
+        }
+    }
+}
+
+/// A `kB` line of `/proc/self/status`, in bytes.
+fn proc_status_bytes(key: &str) -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with(key))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+fn cpu_model() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|m| m.trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown".into())
+}
+
+/// The widest SIMD level the compiler was allowed to use.
+fn compiled_simd() -> String {
+    if cfg!(target_feature = "avx512f") {
+        "avx512f"
+    } else if cfg!(target_feature = "avx2") {
+        "avx2"
+    } else if cfg!(target_feature = "sse2") {
+        "sse2 (no target-cpu)"
+    } else if cfg!(target_arch = "aarch64") {
+        "neon"
+    } else {
+        "none"
+    }
+    .into()
+}

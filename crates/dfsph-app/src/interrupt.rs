@@ -1,0 +1,36 @@
+//! Ctrl-C (SIGINT) and SIGTERM: the first one asks a running `run` or `stress` to stop after
+//! the step in progress, so it can finish its files (the last snapshot, `index.csv`,
+//! `stats.csv`, the recording's end line) and exit with code 130; a second one ends the
+//! process at once.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+static REQUESTED: AtomicBool = AtomicBool::new(false);
+
+/// Exit code of a run stopped by Ctrl-C (128 + SIGINT, as shells report it).
+pub const EXIT_CODE: u8 = 130;
+
+/// Install the handlers (Unix; elsewhere Ctrl-C keeps its default meaning).
+pub fn install() {
+    #[cfg(unix)]
+    {
+        extern "C" fn on_signal(_: libc::c_int) {
+            if REQUESTED.swap(true, Ordering::SeqCst) {
+                // Second signal: the user insists. `_exit` is async-signal-safe.
+                unsafe { libc::_exit(EXIT_CODE as libc::c_int) };
+            }
+        }
+        let handler = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+        // SAFETY: the handler only touches an atomic and calls `_exit`, both
+        // async-signal-safe.
+        unsafe {
+            libc::signal(libc::SIGINT, handler);
+            libc::signal(libc::SIGTERM, handler);
+        }
+    }
+}
+
+/// Has Ctrl-C (or SIGTERM) been received?
+pub fn requested() -> bool {
+    REQUESTED.load(Ordering::SeqCst)
+}

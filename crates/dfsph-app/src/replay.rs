@@ -1,0 +1,269 @@
+//! `dfsph2d run SCENE --replay FILE`: replay a recording (`view --record`, `stress --record`)
+//! headless. The run starts from the scene exactly as recorded (its header), applies every
+//! action before the step it was recorded at, and, unless `--until` says otherwise, stops when
+//! the recording ends and compares the final state with the recording's fingerprint.
+
+use std::path::Path;
+
+use anyhow::Result;
+use dfsph::recording::{fingerprint_hex, Entry, Recording};
+use dfsph::{Action, Scene, Simulation};
+
+use crate::run::{self, Driver, RunOutcome, RunPlan};
+
+/// Recordings larger than this are refused unread (a long viewer session is a few MB).
+const MAX_RECORDING_BYTES: u64 = 256 * 1024 * 1024;
+
+/// Read and check the recording at `path` for a run of `scene` (named `scene_arg` on the
+/// command line): the recording must have been made on the same scene, up to its name,
+/// description and particle budget. Every failure is one line naming the file.
+pub fn load(path: &Path, scene_arg: &str, scene: &Scene) -> Result<Recording, String> {
+    let shown = path.display();
+    let meta = std::fs::metadata(path).map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound => format!("recording `{shown}` does not exist"),
+        _ => format!("cannot read recording `{shown}`: {e}"),
+    })?;
+    if meta.is_dir() {
+        return Err(format!(
+            "`{shown}` is a directory, not a recording (a file from `view --record` or `stress --record`)"
+        ));
+    }
+    if meta.len() > MAX_RECORDING_BYTES {
+        return Err(format!(
+            "recording `{shown}` is {} bytes, more than the {MAX_RECORDING_BYTES} a recording may have",
+            meta.len()
+        ));
+    }
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read recording `{shown}`: {e}"))?;
+    let text = String::from_utf8(bytes)
+        .map_err(|_| format!("recording `{shown}` is not UTF-8 text (expected JSON lines)"))?;
+    let recording = Recording::parse(&text).map_err(|e| format!("recording `{shown}`: {e}"))?;
+    if let Some(key) = first_difference(&recording.header.scene, scene) {
+        return Err(format!(
+            "recording `{shown}` was made on a different scene than `{scene_arg}`: `{key}` differs \
+             (replay it with the scene it was recorded on, `{}`)",
+            recording.header.scene.name
+        ));
+    }
+    Ok(recording)
+}
+
+/// The first top-level key in which two scenes differ, ignoring `name`, `description` and
+/// `max_particles` (the viewer and `stress` set their own pour budget).
+fn first_difference(a: &Scene, b: &Scene) -> Option<String> {
+    let (Ok(serde_json::Value::Object(a)), Ok(serde_json::Value::Object(b))) =
+        (serde_json::to_value(a), serde_json::to_value(b))
+    else {
+        return Some("(unserialisable)".into());
+    };
+    a.iter()
+        .filter(|(k, _)| !matches!(k.as_str(), "name" | "description" | "max_particles"))
+        .find(|(k, v)| b.get(*k) != Some(*v))
+        .map(|(k, _)| k.clone())
+}
+
+/// Applies a recording's actions between the steps of a run.
+pub struct ReplayDriver {
+    entries: Vec<Entry>,
+    next: usize,
+    /// Steps taken, resets included (the recording's clock).
+    done: u64,
+    /// Steps in the recording.
+    end: u64,
+    /// `--until` was given: run by simulated time instead of to the recording's end.
+    by_time: bool,
+    applied: usize,
+    rejected: usize,
+    resets: usize,
+    /// Fingerprint of the final state, when the run reached the recording's end.
+    final_fingerprint: Option<String>,
+}
+
+impl ReplayDriver {
+    pub fn new(recording: &Recording, by_time: bool) -> Self {
+        Self {
+            entries: recording.entries.clone(),
+            next: 0,
+            done: 0,
+            end: recording.steps(),
+            by_time,
+            applied: 0,
+            rejected: 0,
+            resets: 0,
+            final_fingerprint: None,
+        }
+    }
+
+    /// Apply every action due now; true when one of them rebuilt the simulation.
+    fn apply_due(&mut self, sim: &mut Simulation) -> bool {
+        let mut reset = false;
+        while let Some(e) = self.entries.get(self.next) {
+            if e.step > self.done {
+                break;
+            }
+            let outcome = sim.apply(&e.action);
+            self.applied += 1;
+            if outcome.rejected.is_some() {
+                self.rejected += 1;
+            } else if matches!(e.action, Action::Reset { .. }) {
+                self.resets += 1;
+                reset = true;
+            }
+            self.next += 1;
+        }
+        reset
+    }
+}
+
+impl Driver for ReplayDriver {
+    fn before_step(&mut self, sim: &mut Simulation) -> Result<bool> {
+        let reset = self.apply_due(sim);
+        self.done += 1;
+        Ok(reset)
+    }
+
+    fn finished(&self) -> bool {
+        !self.by_time && self.done >= self.end
+    }
+
+    fn after_last_step(&mut self, sim: &mut Simulation) -> Result<bool> {
+        if self.by_time || self.done < self.end {
+            return Ok(false);
+        }
+        let reset = self.apply_due(sim);
+        self.final_fingerprint = Some(fingerprint_hex(sim));
+        Ok(reset)
+    }
+
+    fn progress(&self) -> Option<f64> {
+        (!self.by_time && self.end > 0).then(|| self.done as f64 / self.end as f64)
+    }
+}
+
+/// How a replay went.
+pub struct ReplayReport {
+    /// Appended to the run's summary line.
+    pub note: String,
+    /// The final state differs from the recording's: why, in one line.
+    pub diverged: Option<String>,
+}
+
+/// Run `plan` replaying `recording` (`by_time`: `--until` was given).
+pub fn execute(
+    plan: &RunPlan,
+    sim: Simulation,
+    recording: &Recording,
+    by_time: bool,
+) -> Result<(RunOutcome, ReplayReport)> {
+    let mut driver = ReplayDriver::new(recording, by_time);
+    let outcome = run::execute_with(plan, sim, &mut driver)?;
+    let mut note = format!(
+        "replayed {} of {} actions over {} steps ({} rejected, {} resets)",
+        driver.applied,
+        recording.entries.len(),
+        driver.done,
+        driver.rejected,
+        driver.resets
+    );
+    let mut diverged = None;
+    match (&recording.end, &driver.final_fingerprint) {
+        _ if by_time => note.push_str("; --until given, final state not compared"),
+        (None, _) => note.push_str("; the recording has no end line, final state not compared"),
+        (Some(_), None) => note.push_str("; stopped before the recording's end"),
+        (Some(end), Some(got)) if *got == end.fingerprint => {
+            note.push_str(&format!("; final state matches the recording ({got})"))
+        }
+        (Some(end), Some(got)) => {
+            let threads = rayon::current_num_threads();
+            note.push_str(&format!("; final state DIFFERS from the recording ({got})"));
+            diverged = Some(format!(
+                "the replay diverged from the recording: final state {got} (t = {:.6} s, {} \
+                 fluid particles), recorded {} (t = {:.6} s, {} fluid particles); recorded with \
+                 {} threads, replayed with {threads}{}",
+                outcome.time,
+                outcome.n_fluid,
+                end.fingerprint,
+                end.time,
+                end.n_fluid,
+                recording.header.threads,
+                if recording.header.threads == threads {
+                    ""
+                } else {
+                    " (results are bit-identical only for the same thread count: try --threads)"
+                }
+            ));
+        }
+    }
+    Ok((outcome, ReplayReport { note, diverged }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dfsph::recording::{End, Header};
+    use dfsph::scene;
+
+    fn coarse() -> Scene {
+        let mut s = scene::builtin("hydrostatic").unwrap();
+        s.particle_radius = 0.05;
+        s
+    }
+
+    #[test]
+    fn scenes_differing_only_in_name_or_budget_match() {
+        let a = coarse();
+        let mut b = a.clone();
+        b.name = "other".into();
+        b.description = "x".into();
+        b.max_particles = 7777;
+        assert_eq!(first_difference(&a, &b), None);
+        b.particle_radius = 0.04;
+        assert_eq!(first_difference(&a, &b).as_deref(), Some("particle_radius"));
+    }
+
+    #[test]
+    fn driver_applies_actions_at_their_steps_and_stops_at_the_end() {
+        let scene = coarse();
+        let rec = Recording {
+            header: Header::new("t", 1, &scene),
+            entries: vec![
+                Entry {
+                    step: 0,
+                    action: Action::ShakeTank { direction: 1.0 },
+                },
+                Entry {
+                    step: 2,
+                    action: Action::Reset { scene: None },
+                },
+                Entry {
+                    step: 4,
+                    action: Action::ShakeTank { direction: -1.0 },
+                },
+            ],
+            end: Some(End {
+                end: 4,
+                time: 0.0,
+                n_fluid: 0,
+                fingerprint: String::new(),
+            }),
+        };
+        let mut sim = Simulation::new(&scene).unwrap();
+        let mut d = ReplayDriver::new(&rec, false);
+        let mut resets = Vec::new();
+        while !d.finished() {
+            resets.push(d.before_step(&mut sim).unwrap());
+            sim.step();
+        }
+        assert_eq!(resets, [false, false, true, false]);
+        assert_eq!(sim.step_count(), 2, "two steps after the reset");
+        assert_eq!(sim.shake_direction(), 0.0, "the reset ended the shaking");
+        d.after_last_step(&mut sim).unwrap();
+        assert_eq!(
+            sim.shake_direction(),
+            -1.0,
+            "the action at the end step applies"
+        );
+        assert_eq!((d.applied, d.resets), (3, 1));
+        assert!(d.final_fingerprint.is_some());
+    }
+}

@@ -1,0 +1,729 @@
+//! `dfsph2d stress [SCENE] --seed N --steps K [--record FILE]`: drive a scene with a seeded
+//! random sequence of the viewer's actions and check the simulation after every action and
+//! every step (the checks and ranges are listed in `dfsph2d stress --help`, `cli.rs`).
+//!
+//! The action sequence depends only on the seed, the step count and the scene (never on the
+//! simulated state), so a seed names the same sequence on every machine; `--record` writes it
+//! down anyway, with the final state's fingerprint, for `run --replay`.
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::PathBuf;
+
+use dfsph::forces::MAX_POINTER_ACCELERATION;
+use dfsph::recording::{End, Header, Recorder};
+use dfsph::{Action, Scene, Simulation, StepStats, Vec2};
+
+use crate::cli::StressArgs;
+use crate::scene_arg::{load_scene, one_line};
+use crate::Failure;
+
+/// The viewer's pour speed, m/s (`dfsph_viewer::input::POUR_SPEED`).
+const POUR_SPEED: f32 = 1.0;
+/// The viewer's largest tilt of gravity, degrees.
+const MAX_TILT_DEG: f32 = 45.0;
+
+/// `dfsph2d stress`.
+pub fn command(args: StressArgs) -> Result<(), Failure> {
+    if let Some(n) = args.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n as usize)
+            .build_global()
+            .map_err(|e| Failure::input(format!("cannot start {n} threads: {e}")))?;
+    }
+    let scene = load_scene(&args.scene).map_err(Failure::input)?;
+    let scene = budgeted(scene);
+    let sim = Simulation::new(&scene)
+        .map_err(|e| Failure::input(format!("scene `{}`: {e}", args.scene)))?;
+    let recorder = match &args.record {
+        Some(path) => Some(open_recorder(path, &args, &scene).map_err(Failure::input)?),
+        None => None,
+    };
+    crate::interrupt::install();
+    let plan = StressPlan {
+        seed: args.seed,
+        steps: args.steps,
+        density_bound_pct: args.density_bound,
+    };
+    let outcome = run(&plan, sim, recorder).map_err(Failure::runtime)?;
+    println!("{}", outcome.summary(&scene.name, &plan));
+    if outcome.interrupted {
+        return Err(Failure {
+            code: crate::interrupt::EXIT_CODE,
+            message: String::new(),
+        });
+    }
+    match outcome.violation {
+        // The summary line already names the violation.
+        Some(_) => Err(Failure {
+            code: 1,
+            message: String::new(),
+        }),
+        None => Ok(()),
+    }
+}
+
+fn open_recorder(
+    path: &PathBuf,
+    args: &StressArgs,
+    scene: &Scene,
+) -> Result<Recorder<BufWriter<File>>, String> {
+    if path.is_dir() {
+        return Err(format!(
+            "--record `{}` is a directory, not a file",
+            path.display()
+        ));
+    }
+    let source = format!("stress seed={} steps={}", args.seed, args.steps);
+    let header = Header::new(source, rayon::current_num_threads(), scene);
+    let file = File::create(path)
+        .map_err(|e| format!("cannot create recording `{}`: {e}", path.display()))?;
+    Recorder::new(BufWriter::new(file), &header)
+        .map_err(|e| format!("cannot write recording `{}`: {e}", path.display()))
+}
+
+/// The viewer's pour budget: room for the scene's fluid and as much again (at least 2,000
+/// more), within the scene's own `max_particles` (`dfsph_viewer::app::budgeted_scene`).
+pub fn budgeted(mut scene: Scene) -> Scene {
+    let n = scene.fluid_particle_count();
+    scene.max_particles = scene.max_particles.min((2 * n).max(n + 2000)).max(n);
+    scene
+}
+
+/// What to run.
+pub struct StressPlan {
+    pub seed: u64,
+    pub steps: u64,
+    /// Largest allowed single-particle density error, percent.
+    pub density_bound_pct: f64,
+}
+
+/// The first broken invariant.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Violation {
+    /// Steps taken when it was seen (0: before the first step, after an action).
+    pub step: u64,
+    pub what: String,
+}
+
+/// What a stress run saw.
+#[derive(Clone, Debug, Default)]
+pub struct StressOutcome {
+    /// Steps taken.
+    pub steps: u64,
+    pub actions: usize,
+    pub rejected: usize,
+    pub resets: usize,
+    pub n_fluid: usize,
+    pub poured: usize,
+    pub erased: usize,
+    pub max_density_error_pct: f64,
+    pub max_speed: f64,
+    pub clamped: u64,
+    pub non_finite: u64,
+    pub violation: Option<Violation>,
+    pub interrupted: bool,
+    /// Fingerprint of the final state.
+    pub fingerprint: String,
+}
+
+impl StressOutcome {
+    /// The one-line summary.
+    pub fn summary(&self, scene: &str, plan: &StressPlan) -> String {
+        let verdict = match (&self.violation, self.interrupted) {
+            (Some(v), _) => format!("FAILED at step {}: {}", v.step, v.what),
+            (None, true) => format!("interrupted at step {}", self.steps),
+            (None, false) => "ok".to_string(),
+        };
+        let ran = if self.steps < plan.steps {
+            format!("ran {} of {} steps, ", self.steps, plan.steps)
+        } else {
+            String::new()
+        };
+        let resets = match self.resets {
+            0 => String::new(),
+            1 => ", 1 reset".to_string(),
+            n => format!(", {n} resets"),
+        };
+        one_line(&format!(
+            "stress {scene} seed={} steps={}: {verdict} — {ran}particles {} (+{} poured −{} \
+             erased{resets}), max density error {:.2} % (bound {} %), max speed {:.2} m/s, {} \
+             clamps, {} non-finite, {} actions ({} rejected)",
+            plan.seed,
+            plan.steps,
+            self.n_fluid,
+            self.poured,
+            self.erased,
+            self.max_density_error_pct,
+            plan.density_bound_pct,
+            self.max_speed,
+            self.clamped,
+            self.non_finite,
+            self.actions,
+            self.rejected,
+        ))
+    }
+}
+
+/// Run the plan on `sim` (built from the budgeted scene), recording the actions if asked.
+/// Stops at the first violation or on Ctrl-C.
+pub fn run<W: std::io::Write>(
+    plan: &StressPlan,
+    mut sim: Simulation,
+    mut recorder: Option<Recorder<W>>,
+) -> anyhow::Result<StressOutcome> {
+    let mut gen = Generator::new(plan.seed, sim.scene());
+    let mut out = StressOutcome::default();
+    // Fluid particles expected now: the epoch's start (initial, or after a reset) plus
+    // poured minus erased since.
+    let mut expected = sim.fluid_count();
+    let mut actions = Vec::new();
+    while out.steps < plan.steps {
+        if crate::interrupt::requested() {
+            out.interrupted = true;
+            break;
+        }
+        actions.clear();
+        gen.actions(out.steps, sim.scene(), &mut actions);
+        for action in &actions {
+            if let Some(rec) = &mut recorder {
+                rec.record(out.steps, action)?;
+            }
+            let o = sim.apply(action);
+            out.actions += 1;
+            if o.rejected.is_some() {
+                out.rejected += 1;
+                continue;
+            }
+            if let Action::Reset { .. } = action {
+                out.resets += 1;
+                expected = sim.fluid_count();
+            } else {
+                out.poured += o.added;
+                out.erased += o.removed;
+                expected = (expected + o.added).saturating_sub(o.removed);
+            }
+        }
+        if !actions.is_empty() {
+            if let Some(what) = check_state(&sim, expected) {
+                out.violation = Some(Violation {
+                    step: out.steps,
+                    what: format!("after {}: {what}", action_names(&actions)),
+                });
+                break;
+            }
+        }
+        // A panic in the solver is a finding: report it in the summary, without a backtrace.
+        let default_hook = std::panic::take_hook();
+        std::panic::set_hook(Box::new(|_| {}));
+        let stepped = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| *sim.step()));
+        std::panic::set_hook(default_hook);
+        out.steps += 1;
+        let s = match stepped {
+            Ok(s) => s,
+            Err(panic) => {
+                let msg = panic
+                    .downcast_ref::<String>()
+                    .map(String::as_str)
+                    .or_else(|| panic.downcast_ref::<&str>().copied())
+                    .unwrap_or("unknown panic");
+                out.violation = Some(Violation {
+                    step: out.steps,
+                    what: format!("the solver panicked: {msg}"),
+                });
+                break;
+            }
+        };
+        out.clamped += s.clamped as u64;
+        out.non_finite += s.non_finite as u64;
+        if s.max_density_error_pct.is_finite() {
+            out.max_density_error_pct = out.max_density_error_pct.max(s.max_density_error_pct);
+        }
+        if s.max_speed.is_finite() {
+            out.max_speed = out.max_speed.max(s.max_speed);
+        }
+        let what = check_step(&s, plan.density_bound_pct).or_else(|| check_state(&sim, expected));
+        if let Some(what) = what {
+            out.violation = Some(Violation {
+                step: out.steps,
+                what,
+            });
+            break;
+        }
+    }
+    out.n_fluid = sim.fluid_count();
+    let end = End::of(out.steps, &sim);
+    out.fingerprint = end.fingerprint.clone();
+    if let Some(rec) = recorder {
+        rec.finish(&end)?;
+    }
+    Ok(out)
+}
+
+fn action_names(actions: &[Action]) -> String {
+    let names: Vec<String> = actions
+        .iter()
+        .map(|a| match serde_json::to_value(a) {
+            Ok(serde_json::Value::Object(o)) => o
+                .get("action")
+                .and_then(|v| v.as_str())
+                .unwrap_or("?")
+                .to_string(),
+            _ => "?".into(),
+        })
+        .collect();
+    names.join(", ")
+}
+
+/// The step's own report: non-finite values, clamps, density error.
+fn check_step(s: &StepStats, density_bound_pct: f64) -> Option<String> {
+    if s.non_finite > 0 {
+        return Some(format!(
+            "{} became non-finite (NaN or infinite) and reset by the solver",
+            particles(s.non_finite)
+        ));
+    }
+    for (name, v) in [
+        ("max_speed", s.max_speed),
+        ("kinetic_energy", s.kinetic_energy),
+        ("max_density_error_pct", s.max_density_error_pct),
+        ("avg_density_error_pct", s.avg_density_error_pct),
+        ("divergence_error_pct", s.divergence_error_pct),
+        ("dt", s.dt),
+    ] {
+        if !v.is_finite() {
+            return Some(format!("non-finite statistic {name} = {v}"));
+        }
+    }
+    if s.clamped > 0 {
+        return Some(format!(
+            "{} clamped back into the tank (the wall leaked)",
+            particles(s.clamped)
+        ));
+    }
+    if s.max_density_error_pct > density_bound_pct {
+        return Some(format!(
+            "max density error {:.2} % above the bound of {density_bound_pct} % ({} density \
+             iterations)",
+            s.max_density_error_pct, s.density_iterations
+        ));
+    }
+    None
+}
+
+/// `1 particle`, `2 particles`.
+fn particles(n: u32) -> String {
+    match n {
+        1 => "1 particle".into(),
+        n => format!("{n} particles"),
+    }
+}
+
+/// The particles themselves: finite, inside the tank, as many as poured and erased say.
+fn check_state(sim: &Simulation, expected: usize) -> Option<String> {
+    let n = sim.fluid_count();
+    if n != expected {
+        return Some(format!(
+            "{n} fluid particles, but initial + poured − erased = {expected}"
+        ));
+    }
+    if n > sim.scene().max_particles {
+        return Some(format!(
+            "{n} fluid particles, more than the budget of {}",
+            sim.scene().max_particles
+        ));
+    }
+    let (lo, hi) = sim.tank_interior();
+    // The centre line of the first wall layer, d/2 outside the interior (a hair more for
+    // rounding).
+    let d = 2.0 * sim.particle_radius();
+    let slack = Vec2::splat(0.5 * d * 1.001);
+    let (lo, hi) = (lo - slack, hi + slack);
+    for ((x, v), id) in sim.positions().iter().zip(sim.velocities()).zip(sim.ids()) {
+        if !(x.is_finite() && v.is_finite()) {
+            return Some(format!(
+                "particle {id} is not finite: position ({}, {}), velocity ({}, {})",
+                x.x, x.y, v.x, v.y
+            ));
+        }
+        if x.cmplt(lo).any() || x.cmpgt(hi).any() {
+            return Some(format!(
+                "particle {id} at ({:.4}, {:.4}) is outside the tank ({:.4}, {:.4})–({:.4}, {:.4})",
+                x.x, x.y, lo.x, lo.y, hi.x, hi.y
+            ));
+        }
+    }
+    None
+}
+
+/// SplitMix64: tiny, fast, and the same sequence on every platform and version.
+struct Rng(u64);
+
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1).
+    fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+
+    fn rangef(&mut self, lo: f32, hi: f32) -> f32 {
+        self.range(lo as f64, hi as f64) as f32
+    }
+
+    fn below(&mut self, n: u64) -> u64 {
+        self.next_u64() % n
+    }
+
+    fn chance(&mut self, p: f64) -> bool {
+        self.unit() < p
+    }
+
+    /// Uniform on a log scale in [lo, hi] (lo > 0).
+    fn log_range(&mut self, lo: f64, hi: f64) -> f64 {
+        (self.range(lo.ln(), hi.ln())).exp()
+    }
+}
+
+/// A gesture that lasts several steps.
+struct Held {
+    at: Vec2,
+    radius: f32,
+    /// Push strength (m/s²) or pour velocity sign; unused for shaking.
+    strength: f32,
+    until: u64,
+}
+
+/// Makes the viewer's actions from a seed and the scene's (fixed) geometry.
+struct Generator {
+    rng: Rng,
+    /// The initial tank interior and the area the pointer may reach around it.
+    lo: Vec2,
+    hi: Vec2,
+    reach_lo: Vec2,
+    reach_hi: Vec2,
+    /// Lattice spacing of the scene, m.
+    d: f32,
+    shake_until: u64,
+    shaking: bool,
+    pointer: Option<Held>,
+    pour: Option<Held>,
+}
+
+impl Generator {
+    fn new(seed: u64, scene: &Scene) -> Self {
+        let lo = Vec2::new(scene.tank.min[0] as f32, scene.tank.min[1] as f32);
+        let hi = Vec2::new(scene.tank.max[0] as f32, scene.tank.max[1] as f32);
+        let margin = 0.1 * (hi - lo);
+        Self {
+            rng: Rng(seed ^ 0x5eed_d5f0_2d00_0000),
+            lo,
+            hi,
+            reach_lo: lo - margin,
+            reach_hi: hi + margin,
+            d: scene.spacing() as f32,
+            shake_until: 0,
+            shaking: false,
+            pointer: None,
+            pour: None,
+        }
+    }
+
+    /// Anywhere the viewer's pointer could be: the tank and a margin around it.
+    fn anywhere(&mut self) -> Vec2 {
+        Vec2::new(
+            self.rng.rangef(self.reach_lo.x, self.reach_hi.x),
+            self.rng.rangef(self.reach_lo.y, self.reach_hi.y),
+        )
+    }
+
+    /// Inside the tank, in its lower half with even odds (where the water is).
+    fn in_tank(&mut self) -> Vec2 {
+        let top = if self.rng.chance(0.5) {
+            self.lo.y + 0.5 * (self.hi.y - self.lo.y)
+        } else {
+            self.hi.y
+        };
+        Vec2::new(
+            self.rng.rangef(self.lo.x, self.hi.x),
+            self.rng.rangef(self.lo.y, top),
+        )
+    }
+
+    /// A tool radius within the viewer's limits (2d … 2 m), mostly small.
+    fn tool_radius(&mut self) -> f32 {
+        let max = (0.25 * (self.hi - self.lo).min_element()).clamp(2.0 * self.d, 2.0);
+        self.rng.log_range(2.0 * self.d as f64, max as f64) as f32
+    }
+
+    /// The actions applied after `step` steps. `scene` is the simulation's current scene
+    /// (parameter changes start from its values; they change only through these actions).
+    fn actions(&mut self, step: u64, scene: &Scene, out: &mut Vec<Action>) {
+        // Shaking: hold left or right at full strength, switch or let go.
+        if step >= self.shake_until && self.rng.chance(if self.shaking { 0.05 } else { 0.01 }) {
+            let direction = match self.rng.below(5) {
+                0 => 0.0,
+                1 | 2 => -1.0,
+                _ => 1.0,
+            };
+            self.shaking = direction != 0.0;
+            self.shake_until = step + 20 + self.rng.below(300);
+            out.push(Action::ShakeTank { direction });
+        }
+
+        // Push and pull: a drag, updated every few steps, then let go.
+        match &mut self.pointer {
+            Some(p) if step >= p.until => {
+                self.pointer = None;
+                out.push(Action::ReleasePointer);
+            }
+            Some(p) if step.is_multiple_of(4) => {
+                let jitter = Vec2::new(self.rng.rangef(-0.05, 0.05), self.rng.rangef(-0.05, 0.05));
+                p.at = (p.at + jitter).clamp(self.reach_lo, self.reach_hi);
+                out.push(Action::Push {
+                    at: p.at,
+                    radius: p.radius,
+                    strength: p.strength,
+                });
+            }
+            Some(_) => {}
+            None if self.rng.chance(0.015) => {
+                let at = self.anywhere();
+                let radius = self.tool_radius();
+                let strength = if self.rng.chance(0.5) {
+                    MAX_POINTER_ACCELERATION
+                } else {
+                    -MAX_POINTER_ACCELERATION
+                };
+                let until = step + 10 + self.rng.below(150);
+                self.pointer = Some(Held {
+                    at,
+                    radius,
+                    strength,
+                    until,
+                });
+                out.push(Action::Push {
+                    at,
+                    radius,
+                    strength,
+                });
+            }
+            None => {}
+        }
+
+        // Pour: hold the pour key somewhere for a while (until the budget stops it); now
+        // and then with the largest radius, to reach the budget quickly.
+        match &self.pour {
+            Some(p) if step >= p.until => self.pour = None,
+            Some(p) if step.is_multiple_of(3) => out.push(Action::Emit {
+                at: p.at,
+                radius: p.radius,
+                velocity: Vec2::new(0.0, -POUR_SPEED * p.strength),
+            }),
+            Some(_) => {}
+            None if self.rng.chance(0.01) => {
+                let at = self.anywhere();
+                let radius = if self.rng.chance(0.2) {
+                    1.0
+                } else {
+                    self.tool_radius()
+                };
+                let until = step + 10 + self.rng.below(200);
+                self.pour = Some(Held {
+                    at,
+                    radius,
+                    strength: 1.0,
+                    until,
+                });
+            }
+            None => {}
+        }
+
+        // One-off actions.
+        let r = self.rng.unit();
+        let p = 0.004;
+        if r < p {
+            // A wall through the water: 2–4 points in the tank.
+            let n = 2 + self.rng.below(3) as usize;
+            let polyline = (0..n).map(|_| self.in_tank()).collect();
+            out.push(Action::AddWall { polyline });
+        } else if r < 2.0 * p {
+            let at = self.in_tank();
+            let radius = self.tool_radius();
+            out.push(Action::Erase { at, radius });
+        } else if r < 3.0 * p {
+            let magnitude = if self.rng.chance(0.5) {
+                9.81
+            } else {
+                self.rng.rangef(0.0, 30.0)
+            };
+            let tilt = self.rng.rangef(-MAX_TILT_DEG, MAX_TILT_DEG).to_radians();
+            let gravity = Vec2::new(magnitude * tilt.sin(), -magnitude * tilt.cos());
+            out.push(Action::SetGravity { gravity });
+        } else if r < 4.0 * p {
+            let mut viscosity = scene.viscosity.clone();
+            viscosity.xsph = self.rng.range(0.0, 0.5);
+            viscosity.kinematic = self.maybe_zero_log(1e-6, 0.1);
+            viscosity.boundary_kinematic = self.maybe_zero_log(1e-6, 0.1);
+            out.push(Action::SetViscosity { viscosity });
+        } else if r < 5.0 * p {
+            let mut solver = scene.solver.clone();
+            solver.density_tolerance_pct = self.rng.log_range(0.001, 0.5);
+            solver.divergence_tolerance_pct = self.rng.log_range(0.01, 10.0);
+            solver.min_iterations = self.rng.below(4) as u32;
+            solver.max_iterations = 100 + self.rng.below(901) as u32;
+            solver.warm_start = self.rng.chance(0.8);
+            solver.divergence_solve = self.rng.chance(0.8);
+            out.push(Action::SetSolver { solver });
+        } else if r < 6.0 * p {
+            let mut time_step = scene.time_step.clone();
+            time_step.cfl = self.rng.range(0.1, 0.6);
+            time_step.max = self.rng.log_range(2.5e-4, 2.5e-3);
+            time_step.min = time_step.min.min(time_step.max);
+            out.push(Action::SetTimeStep { time_step });
+        } else if r < 6.3 * p {
+            self.pointer = None;
+            self.pour = None;
+            self.shaking = false;
+            out.push(Action::Reset { scene: None });
+        }
+    }
+
+    /// 0 with odds 1 in 3, else log-uniform in [lo, hi].
+    fn maybe_zero_log(&mut self, lo: f64, hi: f64) -> f64 {
+        if self.rng.chance(1.0 / 3.0) {
+            0.0
+        } else {
+            self.rng.log_range(lo, hi)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn coarse() -> Scene {
+        let mut s = dfsph::scene::builtin("dam-break").unwrap();
+        s.particle_radius = 0.05;
+        budgeted(s)
+    }
+
+    #[test]
+    fn the_action_sequence_depends_only_on_the_seed() {
+        let scene = coarse();
+        let sequence = |seed| {
+            let mut g = Generator::new(seed, &scene);
+            let mut all = Vec::new();
+            for step in 0..3000 {
+                let mut a = Vec::new();
+                g.actions(step, &scene, &mut a);
+                all.extend(a.into_iter().map(|a| (step, a)));
+            }
+            all
+        };
+        let a = sequence(1);
+        assert_eq!(a, sequence(1));
+        assert_ne!(a, sequence(2));
+        let kinds: std::collections::BTreeSet<String> = a
+            .iter()
+            .map(|(_, a)| action_names(std::slice::from_ref(a)))
+            .collect();
+        for kind in [
+            "shake_tank",
+            "push",
+            "release_pointer",
+            "emit",
+            "add_wall",
+            "erase",
+            "set_gravity",
+            "set_viscosity",
+            "set_solver",
+            "set_time_step",
+        ] {
+            assert!(kinds.contains(kind), "{kind} never generated: {kinds:?}");
+        }
+        // Every generated parameter change is one the simulation accepts.
+        let mut sim = Simulation::new(&scene).unwrap();
+        for (_, a) in &a {
+            if matches!(
+                a,
+                Action::SetSolver { .. } | Action::SetViscosity { .. } | Action::SetTimeStep { .. }
+            ) {
+                assert_eq!(sim.apply(a).rejected, None, "{a:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn budget_follows_the_viewer() {
+        let s = coarse();
+        assert_eq!(s.max_particles, 200 + 2000);
+    }
+
+    #[test]
+    fn checks_catch_each_kind_of_violation() {
+        let scene = coarse();
+        let mut sim = Simulation::new(&scene).unwrap();
+        let n = sim.fluid_count();
+        assert_eq!(check_state(&sim, n), None);
+        assert!(check_state(&sim, n + 1).unwrap().contains("poured"));
+        let s = *sim.step();
+        assert_eq!(check_step(&s, 5.0), None);
+        let bad = StepStats { clamped: 2, ..s };
+        assert!(check_step(&bad, 5.0).unwrap().contains("clamped"));
+        let bad = StepStats { non_finite: 1, ..s };
+        assert!(check_step(&bad, 5.0).unwrap().contains("non-finite"));
+        let bad = StepStats {
+            max_speed: f64::NAN,
+            ..s
+        };
+        assert!(check_step(&bad, 5.0).unwrap().contains("max_speed"));
+        let bad = StepStats {
+            max_density_error_pct: 7.5,
+            ..s
+        };
+        assert!(check_step(&bad, 5.0).unwrap().contains("7.50 %"));
+    }
+
+    #[test]
+    fn a_short_run_records_what_it_did() {
+        let scene = coarse();
+        let plan = StressPlan {
+            seed: 3,
+            steps: 40,
+            density_bound_pct: 1000.0,
+        };
+        let mut buf = Vec::new();
+        let header = Header::new("test", rayon::current_num_threads(), &scene);
+        let rec = Recorder::new(&mut buf, &header).unwrap();
+        let out = run(&plan, Simulation::new(&scene).unwrap(), Some(rec)).unwrap();
+        if out.violation.is_none() {
+            assert_eq!(out.steps, 40);
+        }
+        let parsed =
+            dfsph::recording::Recording::parse(std::str::from_utf8(&buf).unwrap()).unwrap();
+        assert_eq!(parsed.entries.len(), out.actions);
+        let end = parsed.end.unwrap();
+        assert_eq!(
+            (end.end, end.fingerprint),
+            (out.steps, out.fingerprint.clone())
+        );
+        let line = out.summary("dam-break", &plan);
+        assert!(
+            line.starts_with("stress dam-break seed=3 steps=40: "),
+            "{line}"
+        );
+        assert!(!line.contains('\n'));
+    }
+}

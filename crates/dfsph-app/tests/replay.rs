@@ -1,0 +1,274 @@
+//! Recording and replay: the same scene, recording and thread count give byte-identical
+//! particle files, and `stress --record` followed by `run --replay` reaches the stress run's
+//! final state bit for bit.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const BIN: &str = env!("CARGO_BIN_EXE_dfsph2d");
+
+fn dfsph2d(args: &[&str]) -> Output {
+    Command::new(BIN)
+        .args(args)
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("dfsph2d runs")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+fn coarse_scene(dir: &Path) -> PathBuf {
+    let path = dir.join("coarse.json");
+    std::fs::write(&path, r#"{"particle_radius": 0.05}"#).unwrap();
+    path
+}
+
+/// Every file under `dir/particles`, sorted by name, with its bytes.
+fn particle_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir.join("particles"))
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                std::fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+fn assert_same_files(a: &Path, b: &Path) {
+    let (fa, fb) = (particle_files(a), particle_files(b));
+    let names = |f: &[(String, Vec<u8>)]| f.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>();
+    assert_eq!(names(&fa), names(&fb));
+    assert!(fa.len() > 2, "{:?}", names(&fa));
+    for ((name, x), (_, y)) in fa.iter().zip(&fb) {
+        assert!(x == y, "particles/{name} differs between the runs");
+    }
+}
+
+fn run(args: &[&str]) -> String {
+    let out = dfsph2d(args);
+    let stdout = text(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{args:?}: {stdout}{}",
+        text(&out.stderr)
+    );
+    stdout
+}
+
+#[test]
+fn two_runs_give_byte_identical_particle_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = coarse_scene(tmp.path());
+    let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
+    for dir in [&a, &b] {
+        run(&[
+            "run",
+            scene.to_str().unwrap(),
+            "--until",
+            "0.5",
+            "--every",
+            "0.1",
+            "--threads",
+            "2",
+            "--out",
+            dir.to_str().unwrap(),
+        ]);
+    }
+    assert_same_files(&a, &b);
+    assert_eq!(
+        std::fs::read(a.join("stats.csv")).unwrap(),
+        std::fs::read(b.join("stats.csv")).unwrap()
+    );
+}
+
+/// `stress --record`, then replay twice: each replay says it reached the recorded final
+/// state, and the two replays' particle files are byte-identical.
+fn record_and_replay(seed: &str, steps: &str) -> String {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = coarse_scene(tmp.path());
+    let rec = tmp.path().join("session.jsonl");
+    let out = dfsph2d(&[
+        "stress",
+        scene.to_str().unwrap(),
+        "--seed",
+        seed,
+        "--steps",
+        steps,
+        "--threads",
+        "2",
+        "--record",
+        rec.to_str().unwrap(),
+    ]);
+    let summary = text(&out.stdout);
+    // Whether or not stress found a violation, the recording reproduces the session.
+    assert!(
+        matches!(out.status.code(), Some(0 | 1)),
+        "{summary}{}",
+        text(&out.stderr)
+    );
+    let recording = std::fs::read_to_string(&rec).unwrap();
+    let last: serde_json::Value = serde_json::from_str(recording.lines().last().unwrap()).unwrap();
+    let fingerprint = last["fingerprint"]
+        .as_str()
+        .expect("an end line")
+        .to_string();
+    let n_fluid = last["n_fluid"].as_u64().unwrap() as usize;
+
+    let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
+    for dir in [&a, &b] {
+        let stdout = run(&[
+            "run",
+            scene.to_str().unwrap(),
+            "--replay",
+            rec.to_str().unwrap(),
+            "--every",
+            "0.05",
+            "--out",
+            dir.to_str().unwrap(),
+        ]);
+        assert!(
+            stdout.contains(&format!(
+                "final state matches the recording ({fingerprint})"
+            )),
+            "{stdout}"
+        );
+        assert_eq!(stdout.lines().count(), 1);
+    }
+    assert_same_files(&a, &b);
+    // The last snapshot holds the final state: as many particles as the recording ended with.
+    let index = std::fs::read_to_string(a.join("particles/index.csv")).unwrap();
+    let last_file = index.lines().last().unwrap().rsplit(',').next().unwrap();
+    let rows = std::fs::read_to_string(a.join("particles").join(last_file))
+        .unwrap()
+        .lines()
+        .count();
+    assert_eq!(rows, 1 + n_fluid);
+    summary
+}
+
+#[test]
+fn stress_record_then_replay_reproduces_the_final_state() {
+    record_and_replay("2", "400");
+}
+
+#[test]
+fn replay_reproduces_a_session_with_resets() {
+    // Seed 3 resets the scene once within its first 500 steps (the summary says so).
+    let summary = record_and_replay("3", "500");
+    assert!(summary.contains("reset"), "{summary}");
+}
+
+fn stress_recording(dir: &Path, scene: &Path, seed: &str, steps: &str) -> PathBuf {
+    let rec = dir.join(format!("seed{seed}.jsonl"));
+    let out = dfsph2d(&[
+        "stress",
+        scene.to_str().unwrap(),
+        "--seed",
+        seed,
+        "--steps",
+        steps,
+        "--threads",
+        "2",
+        "--record",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(matches!(out.status.code(), Some(0 | 1)));
+    rec
+}
+
+#[test]
+fn replay_with_until_runs_by_simulated_time() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = coarse_scene(tmp.path());
+    let rec = stress_recording(tmp.path(), &scene, "5", "200");
+    let out_dir = tmp.path().join("out");
+    let stdout = run(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--replay",
+        rec.to_str().unwrap(),
+        "--until",
+        "0.5",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(
+        stdout.contains("--until given, final state not compared"),
+        "{stdout}"
+    );
+    let stats = std::fs::read_to_string(out_dir.join("stats.csv")).unwrap();
+    let last_time: f64 = stats
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .nth(1)
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(last_time >= 0.499, "{last_time}");
+}
+
+#[test]
+fn a_diverging_replay_exits_1_and_says_so() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = coarse_scene(tmp.path());
+    let rec = stress_recording(tmp.path(), &scene, "1", "100");
+    // Tamper with the recorded fingerprint.
+    let text_in = std::fs::read_to_string(&rec).unwrap();
+    let mut lines: Vec<String> = text_in.lines().map(str::to_string).collect();
+    let mut end: serde_json::Value = serde_json::from_str(lines.last().unwrap()).unwrap();
+    end["fingerprint"] = "0000000000000000".into();
+    *lines.last_mut().unwrap() = end.to_string();
+    std::fs::write(&rec, lines.join("\n") + "\n").unwrap();
+    let out_dir = tmp.path().join("out");
+    let out = dfsph2d(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--replay",
+        rec.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.starts_with("error: the replay diverged"), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1);
+    assert!(text(&out.stdout).contains("DIFFERS"));
+}
+
+#[test]
+fn a_recording_of_another_scene_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = coarse_scene(tmp.path());
+    let rec = stress_recording(tmp.path(), &scene, "1", "20");
+    let out_dir = tmp.path().join("out");
+    let out = dfsph2d(&[
+        "run",
+        "hydrostatic",
+        "--replay",
+        rec.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("was made on a different scene"), "{stderr}");
+    assert!(!out_dir.exists());
+}
+
+#[test]
+fn run_without_until_needs_a_recording() {
+    let out = dfsph2d(&["run", "dam-break", "--out", "never"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("--until"));
+    assert!(!Path::new("never").exists());
+}

@@ -1,0 +1,220 @@
+//! Micro-benchmarks of the solver's hot passes, each in isolation, on a dam-break state a few
+//! dozen steps in (20k and 80k fluid particles, d = 0.01 m and 0.005 m):
+//!
+//! * `neighbors/grid_build` — counting sort of the fluid positions into the grid;
+//! * `neighbors/fluid_lists`, `neighbors/boundary_lists` — CSR neighbour lists;
+//! * `density_and_factor` — densities, DFSPH factors α and the cached kernel gradients;
+//! * `pressure/apply` — one `Δv = −Σ V (κ_i + κ_j) ∇W` pass;
+//! * `pressure/residual` — one residual pass (a density solve stopped after 0 iterations);
+//! * `pressure/iteration_plus_residual` — a density solve with exactly 1 iteration: one
+//!   residual pass more than `pressure/residual`, so one solver iteration costs the difference.
+//!
+//! `cargo bench -p dfsph --bench passes` (add `-- density` to run a subset). Threads: rayon's
+//! default (one per core); `RAYON_NUM_THREADS=1` for one.
+
+use std::time::Duration;
+
+use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
+use dfsph::boundary::{volumes, wall_volume_correction};
+use dfsph::kernel::CubicSpline;
+use dfsph::neighbors::{Grid, NeighborLists};
+use dfsph::particles::{BoundaryParticles, FluidParticles};
+use dfsph::scene;
+use dfsph::simulation::lattice_kernel_sum;
+use dfsph::solver::{self, Neighborhood, SolveLimits, SolverScratch};
+use dfsph::{Simulation, Vec2};
+
+/// Everything the passes read, rebuilt through the public API from a running simulation.
+struct State {
+    kernel: CubicSpline,
+    volume: f32,
+    fluid: FluidParticles,
+    boundary: BoundaryParticles,
+    fluid_grid: Grid,
+    boundary_grid: Grid,
+    fluid_lists: NeighborLists,
+    boundary_lists: NeighborLists,
+    fluid_grad: Vec<Vec2>,
+    boundary_grad: Vec<Vec2>,
+}
+
+/// The dam break at spacing `d`, `steps` steps in.
+fn state(d: f64, steps: usize) -> State {
+    let mut sc = scene::builtin("dam-break").expect("built in");
+    sc.particle_radius = 0.5 * d;
+    sc.time_step.max = 5.0e-3;
+    sc.time_step.cfl = 0.2;
+    let mut sim = Simulation::new(&sc).expect("valid scene");
+    for _ in 0..steps {
+        sim.step();
+    }
+    let kernel = *sim.kernel();
+    let d = d as f32;
+    let volume = 1.0 / lattice_kernel_sum(&kernel, d);
+
+    let mut boundary_grid = Grid::new(kernel.support());
+    let order = boundary_grid.build(sim.boundary_positions()).to_vec();
+    let mut boundary = BoundaryParticles::default();
+    for &i in &order {
+        boundary.position.push(sim.boundary_positions()[i as usize]);
+        boundary.velocity.push(Vec2::ZERO);
+        boundary.volume.push(0.0);
+        boundary.body.push(0);
+    }
+    volumes(
+        &boundary_grid,
+        &kernel,
+        wall_volume_correction(&kernel, d),
+        &mut boundary.volume,
+    );
+
+    let mut fluid_grid = Grid::new(kernel.support());
+    let order = fluid_grid.build(sim.positions()).to_vec();
+    let mut fluid = FluidParticles::default();
+    for &i in &order {
+        let i = i as usize;
+        fluid.push(sim.positions()[i], sim.velocities()[i], sim.ids()[i]);
+    }
+    let mut fluid_lists = NeighborLists::default();
+    let mut boundary_lists = NeighborLists::default();
+    fluid_grid.neighbor_lists(&fluid.position, true, &mut fluid_lists);
+    boundary_grid.neighbor_lists(&fluid.position, false, &mut boundary_lists);
+    let mut s = State {
+        kernel,
+        volume,
+        fluid,
+        boundary,
+        fluid_grid,
+        boundary_grid,
+        fluid_lists,
+        boundary_lists,
+        fluid_grad: Vec::new(),
+        boundary_grad: Vec::new(),
+    };
+    solver::density_and_factor(
+        &s.kernel,
+        s.volume,
+        &mut s.fluid,
+        &s.boundary,
+        &s.fluid_lists,
+        &s.boundary_lists,
+        &mut s.fluid_grad,
+        &mut s.boundary_grad,
+    );
+    s
+}
+
+fn passes(c: &mut Criterion) {
+    for (name, d) in [("20k", 0.01), ("80k", 0.005)] {
+        let mut s = state(d, 40);
+        let n = s.fluid.len() as u64;
+        let pairs = (s.fluid_lists.pair_count() + s.boundary_lists.pair_count()) as f64;
+        eprintln!(
+            "{name}: {n} fluid particles, {:.2} neighbours per particle (fluid + boundary)",
+            pairs / n as f64
+        );
+
+        let mut g = c.benchmark_group("neighbors");
+        g.throughput(Throughput::Elements(n));
+        let positions = s.fluid.position.clone();
+        let mut grid = Grid::new(s.kernel.support());
+        g.bench_function(BenchmarkId::new("grid_build", name), |b| {
+            b.iter(|| grid.build(&positions).len())
+        });
+        let mut lists = NeighborLists::default();
+        g.bench_function(BenchmarkId::new("fluid_lists", name), |b| {
+            b.iter(|| {
+                s.fluid_grid
+                    .neighbor_lists(&s.fluid.position, true, &mut lists);
+                lists.pair_count()
+            })
+        });
+        g.bench_function(BenchmarkId::new("boundary_lists", name), |b| {
+            b.iter(|| {
+                s.boundary_grid
+                    .neighbor_lists(&s.fluid.position, false, &mut lists);
+                lists.pair_count()
+            })
+        });
+        g.finish();
+
+        let mut g = c.benchmark_group("density_and_factor");
+        g.throughput(Throughput::Elements(n));
+        g.bench_function(BenchmarkId::from_parameter(name), |b| {
+            b.iter(|| {
+                solver::density_and_factor(
+                    &s.kernel,
+                    s.volume,
+                    &mut s.fluid,
+                    &s.boundary,
+                    &s.fluid_lists,
+                    &s.boundary_lists,
+                    &mut s.fluid_grad,
+                    &mut s.boundary_grad,
+                )
+            })
+        });
+        g.finish();
+
+        let nb = Neighborhood {
+            fluid: &s.fluid_lists,
+            fluid_grad: &s.fluid_grad,
+            boundary: &s.boundary_lists,
+            boundary_grad: &s.boundary_grad,
+        };
+        let dt = 1.0e-3f32;
+        // A stiffness field like a solve's: positive where compressed.
+        let kappa: Vec<f32> = s
+            .fluid
+            .density_ratio
+            .iter()
+            .zip(&s.fluid.factor)
+            .map(|(&r, &a)| (r - 1.0).max(1.0e-4) * a / dt)
+            .collect();
+        let mut g = c.benchmark_group("pressure");
+        g.throughput(Throughput::Elements(n));
+        let mut vel = s.fluid.velocity.clone();
+        g.bench_function(BenchmarkId::new("apply", name), |b| {
+            b.iter(|| solver::apply_pressure(s.volume, &kappa, &mut vel, &s.boundary, &nb))
+        });
+        for (label, iterations) in [("residual", 0), ("iteration_plus_residual", 1)] {
+            let limits = SolveLimits {
+                tolerance_pct: 0.0,
+                max_error_pct: f64::INFINITY,
+                min_iterations: iterations,
+                max_iterations: iterations,
+            };
+            let mut scratch = SolverScratch::default();
+            g.bench_function(BenchmarkId::new(label, name), |b| {
+                b.iter_batched_ref(
+                    || s.fluid.clone(),
+                    |fluid| {
+                        solver::density_solve(
+                            s.volume,
+                            dt,
+                            false,
+                            fluid,
+                            &s.boundary,
+                            &nb,
+                            limits,
+                            &mut scratch,
+                        )
+                        .iterations
+                    },
+                    BatchSize::LargeInput,
+                )
+            });
+        }
+        g.finish();
+    }
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default()
+        .sample_size(20)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(3));
+    targets = passes
+}
+criterion_main!(benches);

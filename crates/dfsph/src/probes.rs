@@ -1,0 +1,417 @@
+//! Probes: virtual instruments placed in a scene and read every step, as in a laboratory tank.
+//!
+//! - A **pressure probe** reads the fluid pressure at a point, in pascals. Put it inside the
+//!   water for a point gauge, or on a wall face (for example on the tank's right wall,
+//!   `x = tank.max[0]`) for a wall pressure sensor.
+//! - A **water-level gauge** reads the height of the free surface above the tank floor at a
+//!   given x, in metres, like a resistive wave gauge.
+//!
+//! Probe coordinates are scene coordinates and move with the tank when it is shaken (a sensor
+//! is fixed to the tank, not to the room).
+//!
+//! ## Methods
+//!
+//! **Pressure** at a point `x`: Shepard-normalised SPH interpolation of the fluid particles'
+//! pressures within the kernel support h, with the hydrostatic correction of Adami, Hu &
+//! Adams (2012, J. Comput. Phys. 231:7057, eq. 27) that boundary-particle methods use to
+//! extrapolate pressure onto a wall:
+//!
+//! ```text
+//! p(x) = Σ_j [p_j + ρ_j · g·(x − x_j)] · V_j W(x − x_j)  /  Σ_j V_j W(x − x_j)
+//! ```
+//!
+//! (g the current gravity vector, V_j = m/ρ_j). The correction makes the reading exact for a
+//! hydrostatic field even where the kernel is cut off by a wall or the free surface, where a
+//! plain Shepard average would report the pressure at the neighbours' mean depth instead (at
+//! a floor sensor, about one particle spacing too shallow). A probe with no fluid particle
+//! within h is **dry** and reads 0.
+//!
+//! **Water level** at `x`: the fluid fraction `φ(y) = Σ_j V0 W((x, y) − x_j)` (V0 = m/ρ0, the
+//! volume of a particle at rest; φ ≈ 1 inside the water, ≈ 0.5 on a flat free surface, 0 in
+//! air) is sampled along the vertical line through `x` from the tank top down, every d/4
+//! (d = particle spacing). The level is the highest y where φ ≥ 0.5, located between samples
+//! by linear interpolation, measured from the tank floor. Detached spray counts if it is
+//! dense enough to reach φ ≥ 0.5 on the line (a gauge in the laboratory sees it too). A dry
+//! gauge reads 0. Place gauges at least h/2 = 2r from a side wall: on the wall face itself
+//! the kernel is half cut off, φ stays near 0.5 and the gauge under-reads.
+
+use glam::Vec2;
+use serde::{Deserialize, Serialize};
+
+use crate::scene::{Point, Scene, SceneError};
+use crate::Simulation;
+
+/// One probe of a scene's `probes` list.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, tag = "type", rename_all = "snake_case")]
+pub enum Probe {
+    /// Fluid pressure at a point (inside the water, or on a wall face), Pa.
+    Pressure {
+        /// Column name in `probes.csv`.
+        name: String,
+        /// Position, m.
+        at: Point,
+    },
+    /// Height of the free surface above the tank floor along the vertical line at `x`, m.
+    WaterLevel {
+        /// Column name in `probes.csv`.
+        name: String,
+        /// Horizontal position, m.
+        x: f64,
+    },
+}
+
+impl Probe {
+    /// The probe's name (its column in `probes.csv`).
+    pub fn name(&self) -> &str {
+        match self {
+            Probe::Pressure { name, .. } | Probe::WaterLevel { name, .. } => name,
+        }
+    }
+
+    /// Unit of the reading.
+    pub fn unit(&self) -> &'static str {
+        match self {
+            Probe::Pressure { .. } => "Pa",
+            Probe::WaterLevel { .. } => "m",
+        }
+    }
+}
+
+fn invalid(key: impl Into<String>, message: impl Into<String>) -> SceneError {
+    SceneError::Invalid {
+        key: key.into(),
+        message: message.into(),
+    }
+}
+
+/// Check the probes of `scene`: names non-empty, unique, usable as CSV column names and not
+/// `time`; positions finite and inside the tank (its walls included). Called by
+/// [`Scene::validate`].
+pub fn validate(scene: &Scene) -> Result<(), SceneError> {
+    let tank = &scene.tank;
+    let eps = 1.0e-9 * (tank.max[0] - tank.min[0]).max(tank.max[1] - tank.min[1]);
+    let inside = |key: String, v: f64, axis: usize| -> Result<(), SceneError> {
+        if !v.is_finite() {
+            return Err(invalid(key, format!("must be a finite number, got {v}")));
+        }
+        if v < tank.min[axis] - eps || v > tank.max[axis] + eps {
+            return Err(invalid(
+                key,
+                format!(
+                    "{v} lies outside the tank ({} to {}); a probe must be inside it or on a wall",
+                    tank.min[axis], tank.max[axis]
+                ),
+            ));
+        }
+        Ok(())
+    };
+    let mut seen: Vec<&str> = Vec::new();
+    for (i, probe) in scene.probes.iter().enumerate() {
+        let key = format!("probes[{i}]");
+        let name = probe.name();
+        if name.trim().is_empty() {
+            return Err(invalid(format!("{key}.name"), "must not be empty"));
+        }
+        if name.chars().any(|c| matches!(c, ',' | '"' | '\n' | '\r')) || name != name.trim() {
+            return Err(invalid(
+                format!("{key}.name"),
+                format!(
+                    "{name:?} cannot be a CSV column name (no commas, quotes, line breaks or \
+                     surrounding spaces)"
+                ),
+            ));
+        }
+        if name == "time" {
+            return Err(invalid(
+                format!("{key}.name"),
+                "`time` is the first column of probes.csv; choose another name",
+            ));
+        }
+        if seen.contains(&name) {
+            return Err(invalid(
+                format!("{key}.name"),
+                format!("{name:?} is used by another probe; names must be unique"),
+            ));
+        }
+        seen.push(name);
+        match probe {
+            Probe::Pressure { at, .. } => {
+                inside(format!("{key}.at[0]"), at[0], 0)?;
+                inside(format!("{key}.at[1]"), at[1], 1)?;
+            }
+            Probe::WaterLevel { x, .. } => inside(format!("{key}.x"), *x, 0)?,
+        }
+    }
+    Ok(())
+}
+
+/// Where the tank has moved since the start (shaking), m: probe positions follow it.
+fn tank_offset(sim: &Simulation) -> Vec2 {
+    let (lo, _) = sim.tank_interior();
+    let s = sim.scene();
+    lo - Vec2::new(s.tank.min[0] as f32, s.tank.min[1] as f32)
+}
+
+/// Read every probe of the simulation's scene, in order: Pa for pressure probes, m for
+/// water-level gauges.
+pub fn sample_all(sim: &Simulation) -> Vec<f64> {
+    sim.scene().probes.iter().map(|p| sample(sim, p)).collect()
+}
+
+/// Read one probe (its position given in scene coordinates; it follows the tank).
+pub fn sample(sim: &Simulation, probe: &Probe) -> f64 {
+    let off = tank_offset(sim);
+    match probe {
+        Probe::Pressure { at, .. } => {
+            pressure_at(sim, Vec2::new(at[0] as f32, at[1] as f32) + off).unwrap_or(0.0)
+        }
+        Probe::WaterLevel { x, .. } => water_level_at(sim, *x as f32 + off.x),
+    }
+}
+
+/// Pressure at the world point `x`, Pa: Shepard interpolation with the hydrostatic correction
+/// (see the module documentation). `None` when no fluid particle lies within the kernel
+/// support (dry).
+pub fn pressure_at(sim: &Simulation, x: Vec2) -> Option<f64> {
+    let kernel = sim.kernel();
+    let h = kernel.support();
+    let h2 = h * h;
+    let rho0 = sim.rest_density() as f64;
+    let mass = sim.particle_mass() as f64;
+    let g = sim.gravity();
+    let pressures = sim.pressures_over_rho0();
+    let ratios = sim.density_ratios();
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    let mut wet = false;
+    for (j, &xj) in sim.positions().iter().enumerate() {
+        let r = x - xj;
+        let r2 = r.length_squared();
+        if r2 >= h2 {
+            continue;
+        }
+        wet = true;
+        let w = kernel.w(r2.sqrt()) as f64;
+        let rho_j = rho0 * (ratios.get(j).copied().unwrap_or(1.0) as f64).max(1.0e-3);
+        let v = mass / rho_j;
+        let p_j = pressures.get(j).copied().unwrap_or(0.0) as f64 * rho0;
+        num += (p_j + rho_j * g.dot(r) as f64) * v * w;
+        den += v * w;
+    }
+    if !wet {
+        return None;
+    }
+    Some(if den > 0.0 { num / den } else { 0.0 })
+}
+
+/// Fluid fraction `Σ_j V0 W(x − x_j)` at the world point `x` (≈ 1 inside the water, ≈ 0.5
+/// on the free surface, 0 in air).
+pub fn fluid_fraction_at(sim: &Simulation, x: Vec2) -> f64 {
+    let kernel = sim.kernel();
+    let h2 = kernel.support() * kernel.support();
+    let v0 = (sim.particle_mass() / sim.rest_density()) as f64;
+    sim.positions()
+        .iter()
+        .filter_map(|&xj| {
+            let r2 = (x - xj).length_squared();
+            (r2 < h2).then(|| v0 * kernel.w(r2.sqrt()) as f64)
+        })
+        .sum()
+}
+
+/// Water level along the vertical world line at `x`, m above the tank floor: the highest y
+/// where the fluid fraction reaches 0.5 (see the module documentation); 0 when dry.
+pub fn water_level_at(sim: &Simulation, x: f32) -> f64 {
+    let kernel = sim.kernel();
+    let h = kernel.support();
+    let v0 = (sim.particle_mass() / sim.rest_density()) as f64;
+    let (lo, hi) = sim.tank_interior();
+    // The particles that can touch the line, sorted from the top down.
+    let mut near: Vec<Vec2> = sim
+        .positions()
+        .iter()
+        .copied()
+        .filter(|p| (p.x - x).abs() < h)
+        .collect();
+    if near.is_empty() {
+        return 0.0;
+    }
+    near.sort_unstable_by(|a, b| b.y.total_cmp(&a.y));
+    let fraction = |y: f32| -> f64 {
+        let p = Vec2::new(x, y);
+        near.iter()
+            .filter(|q| (q.y - y).abs() < h)
+            .map(|&q| v0 * kernel.w((p - q).length()) as f64)
+            .sum()
+    };
+    let step = 0.5 * sim.particle_radius();
+    // Start just above the highest particle that touches the line (φ = 0 there).
+    let top = (near[0].y + h).min(hi.y + h);
+    let mut y_above = top;
+    let mut phi_above = 0.0;
+    let mut y = top - step;
+    while y >= lo.y - 0.5 * step {
+        let y_here = y.max(lo.y);
+        let phi = fraction(y_here);
+        if phi >= 0.5 {
+            // Linear interpolation between the two samples that bracket φ = 0.5.
+            let t = if phi > phi_above {
+                ((phi - 0.5) / (phi - phi_above)).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let level = y_here as f64 + t * (y_above - y_here) as f64;
+            return (level - lo.y as f64).max(0.0);
+        }
+        y_above = y_here;
+        phi_above = phi;
+        y -= step;
+    }
+    0.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{self, Probe};
+
+    fn hydrostatic(radius: f64, probes: Vec<Probe>) -> Scene {
+        let mut s = scene::builtin("hydrostatic").unwrap();
+        s.particle_radius = radius;
+        s.probes = probes;
+        s
+    }
+
+    fn probe_err(json: &str) -> String {
+        Scene::from_json(json).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn probes_parse_and_round_trip() {
+        let s = Scene::from_json(
+            r#"{"probes": [
+                {"type": "pressure", "name": "p_floor", "at": [2.0, 0.0]},
+                {"type": "water_level", "name": "h1", "x": 1.5}
+            ]}"#,
+        )
+        .unwrap();
+        assert_eq!(s.probes.len(), 2);
+        assert_eq!(s.probes[0].name(), "p_floor");
+        assert_eq!(s.probes[1].unit(), "m");
+        assert_eq!(Scene::from_json(&s.to_json()).unwrap(), s);
+    }
+
+    #[test]
+    fn bad_probes_name_the_key() {
+        let cases = [
+            (
+                r#"{"probes": [{"type": "pressure", "name": "a"}]}"#,
+                "probes[0]",
+            ),
+            (
+                r#"{"probes": [{"type": "pressure", "name": "a", "at": [0, 0], "radius": 1}]}"#,
+                "probes[0]",
+            ),
+            (
+                r#"{"probes": [{"type": "thermometer", "name": "a"}]}"#,
+                "probes[0]",
+            ),
+            (
+                r#"{"probes": [{"type": "pressure", "name": "a", "at": [5, 0]}]}"#,
+                "probes[0].at[0]",
+            ),
+            (
+                r#"{"probes": [{"type": "water_level", "name": "a", "x": -1}]}"#,
+                "probes[0].x",
+            ),
+            (
+                r#"{"probes": [{"type": "water_level", "name": "", "x": 1}]}"#,
+                "probes[0].name",
+            ),
+            (
+                r#"{"probes": [{"type": "water_level", "name": "a,b", "x": 1}]}"#,
+                "probes[0].name",
+            ),
+            (
+                r#"{"probes": [{"type": "water_level", "name": "time", "x": 1}]}"#,
+                "probes[0].name",
+            ),
+            (
+                r#"{"probes": [{"type": "water_level", "name": "a", "x": 1},
+                               {"type": "pressure", "name": "a", "at": [1, 1]}]}"#,
+                "probes[1].name",
+            ),
+        ];
+        for (json, needle) in cases {
+            let msg = probe_err(json);
+            assert!(msg.contains(needle), "{json}: {msg:?} lacks {needle:?}");
+        }
+    }
+
+    #[test]
+    fn gauge_reads_the_initial_water_height_within_a_particle_diameter() {
+        let r = 0.02;
+        let s = hydrostatic(
+            r,
+            vec![
+                Probe::WaterLevel {
+                    name: "mid".into(),
+                    x: 1.0,
+                },
+                Probe::WaterLevel {
+                    name: "near_wall".into(),
+                    x: 2.0 * r,
+                },
+            ],
+        );
+        let sim = Simulation::new(&s).unwrap();
+        for level in sample_all(&sim) {
+            assert!((level - 1.0).abs() < 2.0 * r, "level {level}");
+        }
+        // Dry gauges read 0.
+        let mut dry = s.clone();
+        dry.fluid[0].max[0] = 0.5;
+        let sim = Simulation::new(&dry).unwrap();
+        assert_eq!(sample_all(&sim)[0], 0.0);
+    }
+
+    #[test]
+    fn dry_pressure_probe_reads_zero() {
+        let s = hydrostatic(
+            0.02,
+            vec![Probe::Pressure {
+                name: "air".into(),
+                at: [1.0, 1.8],
+            }],
+        );
+        let sim = Simulation::new(&s).unwrap();
+        assert_eq!(pressure_at(&sim, Vec2::new(1.0, 1.8)), None);
+        assert_eq!(sample_all(&sim), vec![0.0]);
+    }
+
+    #[test]
+    fn hydrostatic_pressure_at_mid_depth_after_settling() {
+        let depth = 1.0;
+        let s = hydrostatic(
+            0.025,
+            vec![Probe::Pressure {
+                name: "mid".into(),
+                at: [1.0, 0.5],
+            }],
+        );
+        let mut sim = Simulation::new(&s).unwrap();
+        let mut readings = Vec::new();
+        while sim.time() < 1.5 {
+            sim.step();
+            if sim.time() > 1.0 {
+                readings.push(sample_all(&sim)[0]);
+            }
+        }
+        let mean = readings.iter().sum::<f64>() / readings.len() as f64;
+        let expected = 1000.0 * 9.81 * (depth - 0.5);
+        assert!(
+            (mean / expected - 1.0).abs() < 0.03,
+            "mid-depth pressure {mean:.1} Pa, expected {expected:.1} Pa"
+        );
+    }
+}
