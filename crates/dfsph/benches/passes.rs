@@ -100,6 +100,7 @@ fn state(d: f64, steps: usize) -> State {
         &s.boundary_lists,
         &mut s.fluid_grad,
         &mut s.boundary_grad,
+        f32::INFINITY,
     );
     s
 }
@@ -151,6 +152,7 @@ fn passes(c: &mut Criterion) {
                     &s.boundary_lists,
                     &mut s.fluid_grad,
                     &mut s.boundary_grad,
+                    f32::INFINITY,
                 )
             })
         });

@@ -49,9 +49,10 @@ pub struct StepStats {
     pub non_finite: u32,
     /// Average neighbour count (fluid and boundary) per fluid particle.
     pub avg_neighbors: f64,
-    /// Times this step was redone with half the time step because the first try was unsound
-    /// (density solve at its iteration cap without converging, a non-finite velocity, or a
-    /// particle about to jump more than a particle spacing). `dt` is the one finally taken.
+    /// Times this step was redone with half the time step because the try was unsound (a
+    /// density solve at its iteration cap leaving a particle more than 5 % compressed, a
+    /// non-finite velocity, or a particle about to jump more than a particle spacing). When
+    /// every try is unsound the least bad is taken. `dt` is the one finally taken.
     pub retries: u32,
 }
 
@@ -70,6 +71,8 @@ pub struct Simulation {
     pub(crate) bodies: Vec<Body>,
     /// γ of [`boundary::wall_volume_correction`].
     wall_gamma: f32,
+    /// Cap on the DFSPH factor ([`solver::MAX_FACTOR_RATIO`] × the lattice factor).
+    max_factor: f32,
     /// Boundary particles were added or removed: recompute volumes.
     pub(crate) boundary_changed: bool,
     fluid_grid: Grid,
@@ -87,6 +90,9 @@ pub struct Simulation {
     /// Velocities and pressures after the divergence solve, to redo the rest of a step.
     retry_velocity: Vec<Vec2>,
     retry_pressure: Vec<f32>,
+    /// The least bad of a step's unsound attempts (see [`Self::step`]).
+    best_velocity: Vec<Vec2>,
+    best_pressure: Vec<f32>,
     pub(crate) next_id: u32,
     stats: StepStats,
     total_clamped: u64,
@@ -127,6 +133,7 @@ impl Simulation {
             boundary: BoundaryParticles::default(),
             bodies: Vec::new(),
             wall_gamma: boundary::wall_volume_correction(&kernel, d),
+            max_factor: solver::MAX_FACTOR_RATIO * solver::lattice_factor(&kernel, d, volume),
             boundary_changed: true,
             fluid_grid: Grid::new(kernel.support()),
             boundary_grid: Grid::new(kernel.support()),
@@ -141,6 +148,8 @@ impl Simulation {
             last_dt: scene.time_step.max as f32,
             retry_velocity: Vec::new(),
             retry_pressure: Vec::new(),
+            best_velocity: Vec::new(),
+            best_pressure: Vec::new(),
             next_id: 0,
             stats: StepStats::default(),
             total_clamped: 0,
@@ -239,6 +248,7 @@ impl Simulation {
             &self.boundary_lists,
             &mut self.fluid_grad,
             &mut self.boundary_grad,
+            self.max_factor,
         );
     }
 
@@ -293,6 +303,8 @@ impl Simulation {
         let min_dt = self.scene.time_step.min as f32;
         let mut dt = self.cfl_time_step();
         let mut retries = 0u32;
+        // (largest displacement in spacings, Δt, report) of the least bad unsound attempt.
+        let mut best = (f32::INFINITY, dt, SolveReport::default());
         self.retry_velocity.clone_from(&self.fluid.velocity);
         self.retry_pressure
             .clone_from(&self.fluid.pressure_over_rho0);
@@ -337,13 +349,33 @@ impl Simulation {
                     &mut self.solver_scratch,
                 ),
             };
-            let unconverged = method == Method::Dfsph
+            // A solve at its cap that still leaves a particle compressed by more than
+            // RETRY_DENSITY_ERROR_PCT is unsound. A solve that is merely slow to converge (a
+            // deep column building up its pressure) is not: a smaller Δt cannot help it, since
+            // the compression it carries from earlier steps would be corrected over the
+            // shorter step with a proportionally larger velocity.
+            let overcompressed = method == Method::Dfsph
                 && report.iterations >= density_limits.max_iterations
-                && (report.avg_error_pct > density_limits.tolerance_pct
-                    || report.max_error_pct > density_limits.max_error_pct);
-            let sound = !unconverged && self.velocities_sound(dt);
-            if sound || retries >= MAX_STEP_RETRIES || dt <= min_dt {
+                && report.max_error_pct > RETRY_DENSITY_ERROR_PCT;
+            let displacement = self.max_displacement(dt);
+            if !overcompressed && displacement <= MAX_STEP_DISPLACEMENT {
                 break report;
+            }
+            // Keep the least bad attempt: when every one is unsound, it is the one taken.
+            if displacement < best.0 {
+                best = (displacement, dt, report);
+                self.best_velocity.clone_from(&self.fluid.velocity);
+                self.best_pressure
+                    .clone_from(&self.fluid.pressure_over_rho0);
+            }
+            if retries >= MAX_STEP_RETRIES || dt <= min_dt {
+                let (_, best_dt, best_report) = best;
+                if best_dt != dt {
+                    dt = best_dt;
+                    std::mem::swap(&mut self.fluid.velocity, &mut self.best_velocity);
+                    std::mem::swap(&mut self.fluid.pressure_over_rho0, &mut self.best_pressure);
+                }
+                break best_report;
             }
             // Redo the step from the divergence-free velocities with half the time step.
             retries += 1;
@@ -396,17 +428,24 @@ impl Simulation {
         &self.stats
     }
 
-    /// Whether every velocity is finite and no particle would move more than
-    /// [`MAX_STEP_DISPLACEMENT`] particle spacings in a step of `dt`. CFL keeps a normal step
-    /// at a fraction of a spacing, so a larger jump means the pressure solve produced a kick
+    /// The largest distance a particle would move in a step of `dt`, in particle spacings
+    /// (infinite for a non-finite velocity). CFL keeps a normal step at a fraction of a
+    /// spacing; more than [`MAX_STEP_DISPLACEMENT`] means the pressure solve produced a kick
     /// the step size cannot carry.
-    fn velocities_sound(&self, dt: f32) -> bool {
-        let limit = MAX_STEP_DISPLACEMENT * self.spacing / dt;
-        let limit2 = limit * limit;
-        self.fluid
+    fn max_displacement(&self, dt: f32) -> f32 {
+        let max2 = self
+            .fluid
             .velocity
             .par_iter()
-            .all(|v| v.is_finite() && v.length_squared() <= limit2)
+            .map(|v| {
+                if v.is_finite() {
+                    v.length_squared()
+                } else {
+                    f32::INFINITY
+                }
+            })
+            .reduce(|| 0.0, f32::max);
+        max2.sqrt() * dt / self.spacing
     }
 
     /// CFL condition `Δt = λ·d / v_max` (v_max includes moving walls; WCSPH adds the speed of
@@ -603,6 +642,23 @@ impl Simulation {
         &self.boundary.position
     }
 
+    /// Boundary particle volumes Ψ_b (Akinci et al. 2012), m², same order as
+    /// [`Self::boundary_positions`].
+    pub fn boundary_volumes(&self) -> &[f32] {
+        &self.boundary.volume
+    }
+
+    /// Divergence-solve stiffness κᵛ of the last step, m²/s, same order as
+    /// [`Self::positions`] (zero when the divergence solve is off or for WCSPH).
+    pub fn divergence_stiffnesses(&self) -> &[f32] {
+        &self.fluid.divergence_stiffness
+    }
+
+    /// Particle spacing d = 2r of the fluid lattice and of the tank walls' sampling, m.
+    pub fn spacing(&self) -> f32 {
+        self.spacing
+    }
+
     /// The body of each boundary particle (0 = tank).
     pub fn boundary_bodies(&self) -> &[BodyId] {
         &self.boundary.body
@@ -683,6 +739,9 @@ pub const MAX_DENSITY_ERROR_PCT: f64 = 1.0;
 
 /// How often one step may be redone with half the time step before it is taken as it is.
 pub const MAX_STEP_RETRIES: u32 = 4;
+/// A density solve that reaches its iteration cap with a particle compressed by more than
+/// this, percent, makes the step unsound (it is redone with half the Δt).
+pub const RETRY_DENSITY_ERROR_PCT: f64 = 5.0;
 /// Largest displacement in one step, in particle spacings, before the step is redone.
 pub const MAX_STEP_DISPLACEMENT: f32 = 1.0;
 
