@@ -272,8 +272,9 @@ pub fn hydrostatic(s: Settings) -> Result<Vec<CaseReport>> {
         "Water {depth} m deep at rest in a 2 m wide tank (built-in scene `hydrostatic`), \
          particle radius r = {r} m, run for {until} s from the lattice at rest (gravity on \
          from t = 0). Analytic solution: p(y) = ρ0·g·(H − y), density ρ0, velocity 0.\n\n\
-         Pressure probes (Shepard interpolation with the hydrostatic wall correction, see \
-         `docs/scenes.md`) on the centre line x = 1 m, on the floor and on the left wall; \
+         Pressure probes on the centre line x = 1 m (SPH interpolation) and on the floor and \
+         the left wall (wall sensors: the fluid's normal force on the wall per unit length; \
+         see `docs/scenes.md`); \
          readings averaged over the last quarter of the run (t ≥ {from} s). Tolerance: 2 % \
          of ρ0·g·H = {p_ref:.0} Pa (the issue). The water-level gauge at x = 1 m reads \
          {level:.4} m (nominal {depth} m).\n"
@@ -1037,8 +1038,8 @@ pub fn lobovsky(s: Settings) -> Result<Vec<CaseReport>> {
          left wall, particle radius r = {r} m, run to T = {t_end} (T = t·√(g/H)). Probes as \
          in the experiment (and TNL-SPH's configuration of it): water-level gauges H1–H4 at \
          x = 0.300, 0.865, 1.114, 1.3625 m and pressure sensors on the far wall x = 1.61 m at \
-         heights 3, 15, 30 and 80 mm (wall probes: Shepard interpolation with the hydrostatic \
-         correction, 0 when dry). No time shift.\n\n\
+         heights 3, 15, 30 and 80 mm (wall sensors: the fluid's normal force on the wall per unit \
+         length, 0 when dry; see `docs/scenes.md`). No time shift.\n\n\
          **Water levels.** The comparison window of each gauge ends before the wave reflected \
          from the far wall returns to it: from there on the repetitions of the experiment \
          themselves disagree by up to 0.36 H. Inside the windows the repetitions agree to an \
