@@ -2,42 +2,13 @@
 //! file, and the errors for bad scenes and arguments (exit code 2, one line, nothing
 //! written). Scenes are coarse and runs short, so the whole file takes a second or two.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
 use vtkio::model::{Attribute, DataSet, Piece};
 
-const BIN: &str = env!("CARGO_BIN_EXE_dfsph2d");
+mod common;
 
-/// A 200-particle dam break.
-const COARSE: &str = r#"{"particle_radius": 0.05}"#;
-
-fn dfsph2d(args: &[&str]) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .expect("dfsph2d runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
-
-fn write_scene(dir: &Path, name: &str, content: &[u8]) -> PathBuf {
-    let path = dir.join(name);
-    std::fs::write(&path, content).unwrap();
-    path
-}
-
-fn csv_rows(path: &Path) -> Vec<Vec<String>> {
-    std::fs::read_to_string(path)
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .lines()
-        .map(|l| l.split(',').map(str::to_string).collect())
-        .collect()
-}
+use common::{csv_rows, dfsph2d, text, write_scene, COARSE};
 
 #[test]
 fn scenes_lists_the_builtin_scenes_one_per_line() {

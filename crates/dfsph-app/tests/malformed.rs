@@ -5,24 +5,11 @@
 //! `view` alike.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-const BIN: &str = env!("CARGO_BIN_EXE_dfsph2d");
+mod common;
 
-fn dfsph2d(args: &[&str]) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        // Even with backtraces asked for, none may appear.
-        .env("RUST_BACKTRACE", "1")
-        .output()
-        .expect("dfsph2d runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
+use common::{dfsph2d, replay, text};
 
 /// A file of `len` bytes that takes no disk space (a hole).
 fn sparse(path: &Path, len: u64) {
@@ -299,14 +286,7 @@ fn malformed_recordings_are_refused_naming_the_line() {
             ("directory", None) => std::fs::create_dir(&path).unwrap(),
             _ => {}
         }
-        let out = dfsph2d(&[
-            "run",
-            scene.to_str().unwrap(),
-            "--replay",
-            path.to_str().unwrap(),
-            "--out",
-            out_dir.to_str().unwrap(),
-        ]);
+        let out = replay(scene.to_str().unwrap(), &path, &out_dir, &[]);
         assert_refused(&out, needle, &out_dir, &format!("replay {name}"));
         assert!(
             text(&out.stderr).contains(path.to_str().unwrap()),
@@ -336,14 +316,7 @@ fn hostile_actions_in_a_recording_are_refused_not_executed() {
     )
     .unwrap();
     let out_dir = dir.join("out");
-    let out = dfsph2d(&[
-        "run",
-        scene.to_str().unwrap(),
-        "--replay",
-        rec.to_str().unwrap(),
-        "--out",
-        out_dir.to_str().unwrap(),
-    ]);
+    let out = replay(scene.to_str().unwrap(), &rec, &out_dir, &[]);
     let stdout = text(&out.stdout);
     assert!(out.status.success(), "{stdout}{}", text(&out.stderr));
     assert!(

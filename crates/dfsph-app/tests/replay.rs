@@ -3,28 +3,11 @@
 //! final state bit for bit.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-const BIN: &str = env!("CARGO_BIN_EXE_dfsph2d");
+mod common;
 
-fn dfsph2d(args: &[&str]) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .expect("dfsph2d runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
-
-fn coarse_scene(dir: &Path) -> PathBuf {
-    let path = dir.join("coarse.json");
-    std::fs::write(&path, r#"{"particle_radius": 0.05}"#).unwrap();
-    path
-}
+use common::{coarse_scene, dfsph2d, replay, text};
 
 /// Every file under `dir/particles`, sorted by name, with its bytes.
 fn particle_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
@@ -52,14 +35,10 @@ fn assert_same_files(a: &Path, b: &Path) {
     }
 }
 
-fn run(args: &[&str]) -> String {
-    let out = dfsph2d(args);
+/// The stdout of a command that must have succeeded.
+fn succeeded(out: Output) -> String {
     let stdout = text(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{args:?}: {stdout}{}",
-        text(&out.stderr)
-    );
+    assert!(out.status.success(), "{stdout}{}", text(&out.stderr));
     stdout
 }
 
@@ -69,7 +48,7 @@ fn two_runs_give_byte_identical_particle_files() {
     let scene = coarse_scene(tmp.path());
     let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
     for dir in [&a, &b] {
-        run(&[
+        succeeded(dfsph2d(&[
             "run",
             scene.to_str().unwrap(),
             "--until",
@@ -80,7 +59,7 @@ fn two_runs_give_byte_identical_particle_files() {
             "2",
             "--out",
             dir.to_str().unwrap(),
-        ]);
+        ]));
     }
     assert_same_files(&a, &b);
     assert_eq!(
@@ -94,26 +73,8 @@ fn two_runs_give_byte_identical_particle_files() {
 fn record_and_replay(seed: &str, steps: &str) -> String {
     let tmp = tempfile::tempdir().unwrap();
     let scene = coarse_scene(tmp.path());
-    let rec = tmp.path().join("session.jsonl");
-    let out = dfsph2d(&[
-        "stress",
-        scene.to_str().unwrap(),
-        "--seed",
-        seed,
-        "--steps",
-        steps,
-        "--threads",
-        "2",
-        "--record",
-        rec.to_str().unwrap(),
-    ]);
-    let summary = text(&out.stdout);
     // Whether or not stress found a violation, the recording reproduces the session.
-    assert!(
-        matches!(out.status.code(), Some(0 | 1)),
-        "{summary}{}",
-        text(&out.stderr)
-    );
+    let (rec, summary) = stress_recording(tmp.path(), &scene, seed, steps);
     let recording = std::fs::read_to_string(&rec).unwrap();
     let last: serde_json::Value = serde_json::from_str(recording.lines().last().unwrap()).unwrap();
     let fingerprint = last["fingerprint"]
@@ -124,16 +85,12 @@ fn record_and_replay(seed: &str, steps: &str) -> String {
 
     let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
     for dir in [&a, &b] {
-        let stdout = run(&[
-            "run",
+        let stdout = succeeded(replay(
             scene.to_str().unwrap(),
-            "--replay",
-            rec.to_str().unwrap(),
-            "--every",
-            "0.05",
-            "--out",
-            dir.to_str().unwrap(),
-        ]);
+            &rec,
+            dir,
+            &["--every", "0.05"],
+        ));
         assert!(
             stdout.contains(&format!(
                 "final state matches the recording ({fingerprint})"
@@ -166,7 +123,9 @@ fn replay_reproduces_a_session_with_resets() {
     assert!(summary.contains("reset"), "{summary}");
 }
 
-fn stress_recording(dir: &Path, scene: &Path, seed: &str, steps: &str) -> PathBuf {
+/// `stress --record` on `scene`: the recording and the stress summary line. Stress may find a
+/// violation (exit 1); the recording is written either way.
+fn stress_recording(dir: &Path, scene: &Path, seed: &str, steps: &str) -> (PathBuf, String) {
     let rec = dir.join(format!("seed{seed}.jsonl"));
     let out = dfsph2d(&[
         "stress",
@@ -180,26 +139,27 @@ fn stress_recording(dir: &Path, scene: &Path, seed: &str, steps: &str) -> PathBu
         "--record",
         rec.to_str().unwrap(),
     ]);
-    assert!(matches!(out.status.code(), Some(0 | 1)));
-    rec
+    let summary = text(&out.stdout);
+    assert!(
+        matches!(out.status.code(), Some(0 | 1)),
+        "{summary}{}",
+        text(&out.stderr)
+    );
+    (rec, summary)
 }
 
 #[test]
 fn replay_with_until_runs_by_simulated_time() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = coarse_scene(tmp.path());
-    let rec = stress_recording(tmp.path(), &scene, "5", "200");
+    let (rec, _) = stress_recording(tmp.path(), &scene, "5", "200");
     let out_dir = tmp.path().join("out");
-    let stdout = run(&[
-        "run",
+    let stdout = succeeded(replay(
         scene.to_str().unwrap(),
-        "--replay",
-        rec.to_str().unwrap(),
-        "--until",
-        "0.5",
-        "--out",
-        out_dir.to_str().unwrap(),
-    ]);
+        &rec,
+        &out_dir,
+        &["--until", "0.5"],
+    ));
     assert!(
         stdout.contains("--until given, final state not compared"),
         "{stdout}"
@@ -221,7 +181,7 @@ fn replay_with_until_runs_by_simulated_time() {
 fn a_diverging_replay_exits_1_and_says_so() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = coarse_scene(tmp.path());
-    let rec = stress_recording(tmp.path(), &scene, "1", "100");
+    let (rec, _) = stress_recording(tmp.path(), &scene, "1", "100");
     // Tamper with the recorded fingerprint.
     let text_in = std::fs::read_to_string(&rec).unwrap();
     let mut lines: Vec<String> = text_in.lines().map(str::to_string).collect();
@@ -230,14 +190,7 @@ fn a_diverging_replay_exits_1_and_says_so() {
     *lines.last_mut().unwrap() = end.to_string();
     std::fs::write(&rec, lines.join("\n") + "\n").unwrap();
     let out_dir = tmp.path().join("out");
-    let out = dfsph2d(&[
-        "run",
-        scene.to_str().unwrap(),
-        "--replay",
-        rec.to_str().unwrap(),
-        "--out",
-        out_dir.to_str().unwrap(),
-    ]);
+    let out = replay(scene.to_str().unwrap(), &rec, &out_dir, &[]);
     let stderr = text(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(stderr.starts_with("error: the replay diverged"), "{stderr}");
@@ -249,16 +202,9 @@ fn a_diverging_replay_exits_1_and_says_so() {
 fn a_recording_of_another_scene_is_refused() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = coarse_scene(tmp.path());
-    let rec = stress_recording(tmp.path(), &scene, "1", "20");
+    let (rec, _) = stress_recording(tmp.path(), &scene, "1", "20");
     let out_dir = tmp.path().join("out");
-    let out = dfsph2d(&[
-        "run",
-        "hydrostatic",
-        "--replay",
-        rec.to_str().unwrap(),
-        "--out",
-        out_dir.to_str().unwrap(),
-    ]);
+    let out = replay("hydrostatic", &rec, &out_dir, &[]);
     let stderr = text(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("was made on a different scene"), "{stderr}");

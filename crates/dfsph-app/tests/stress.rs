@@ -5,27 +5,15 @@
 //! `dfsph2d run SCENE --replay rec.jsonl --out DIR`.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-const BIN: &str = env!("CARGO_BIN_EXE_dfsph2d");
+mod common;
 
-fn dfsph2d(args: &[&str]) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .expect("dfsph2d runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
+use common::{dfsph2d, text, COARSE};
 
 /// Coarse scenes: a 200-particle dam break and a 200-particle hydrostatic tank.
 fn scenes(dir: &Path) -> Vec<PathBuf> {
     let coarse = [
-        ("dam-break-coarse.json", r#"{"particle_radius": 0.05}"#),
+        ("dam-break-coarse.json", COARSE),
         (
             "hydrostatic-coarse.json",
             r#"{"particle_radius": 0.05, "tank": {"min": [0, 0], "max": [2, 2]},
