@@ -10,6 +10,7 @@ use dfsph::Scene;
 
 use super::data;
 use super::plot::{Plot, Series, Style};
+use super::report::run_table;
 use super::{completion_check, interp, simulate, CaseReport, Check, Settings, Trace};
 
 /// |g|, m/s² (the scenes' default gravity).
@@ -68,28 +69,6 @@ fn rms(values: impl Iterator<Item = f64>) -> f64 {
     } else {
         (s / n as f64).sqrt()
     }
-}
-
-fn run_table(trace: &[&Trace]) -> String {
-    let mut t = String::from(
-        "| run | r (m) | fluid particles | steps | simulated (s) | wall (s) | clamped | non-finite |\n|---|---|---|---|---|---|---|---|\n",
-    );
-    for tr in trace {
-        let i = &tr.info;
-        let _ = writeln!(
-            t,
-            "| {} | {} | {} | {} | {:.3} | {:.1} | {} | {} |",
-            i.label,
-            i.particle_radius,
-            i.n_fluid,
-            i.steps,
-            i.sim_time,
-            i.wall_s,
-            i.clamped,
-            i.non_finite
-        );
-    }
-    t
 }
 
 // ---------------------------------------------------------------------------------------
@@ -291,7 +270,7 @@ pub fn hydrostatic(s: Settings) -> Result<Vec<CaseReport>> {
         interior.len(),
         scene.solver.density_tolerance_pct
     );
-    text.push_str(&run_table(&[&trace]));
+    text.push_str(&run_table([&trace.info]));
     Ok(vec![CaseReport {
         title: "Hydrostatic tank".into(),
         text,
@@ -559,7 +538,7 @@ pub fn dam_break(s: Settings) -> Result<Vec<CaseReport>> {
     );
     text.push_str(&dev_rows);
     text.push('\n');
-    text.push_str(&run_table(&[&main]));
+    text.push_str(&run_table([&main.info]));
     let front_report = CaseReport {
         title:
             "Dam break: surge front and residual height (Martin & Moyce 1952, Koshizuka & Oka 1996)"
@@ -639,7 +618,7 @@ pub fn dam_break(s: Settings) -> Result<Vec<CaseReport>> {
     );
     text.push_str(&res_rows);
     text.push('\n');
-    text.push_str(&run_table(&[&coarse, &main, &fine]));
+    text.push_str(&run_table([&coarse.info, &main.info, &fine.info]));
     let res_report = CaseReport {
         title: "Resolution study".into(),
         text,
@@ -1080,7 +1059,7 @@ pub fn lobovsky(s: Settings) -> Result<Vec<CaseReport>> {
     );
     text.push_str(&p_rows);
     text.push('\n');
-    text.push_str(&run_table(&[&tr]));
+    text.push_str(&run_table([&tr.info]));
     let mut checks = vec![completion_check("Lobovsky", &tr, t_end / k)];
     checks.extend(level_checks);
     checks.extend(p_checks);

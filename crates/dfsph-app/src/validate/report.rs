@@ -7,7 +7,7 @@ use std::path::Path;
 
 use anyhow::Result;
 
-use super::{CaseReport, Settings};
+use super::{CaseReport, RunInfo, Settings};
 
 /// Write the report to `path` (atomically).
 pub fn write_report(
@@ -119,13 +119,19 @@ pub fn render(settings: Settings, reports: &[CaseReport], wall_s: f64) -> String
             md.push('\n');
         }
     }
-    let _ = writeln!(
-        md,
-        "## Runs\n\n| run | r (m) | fluid particles | steps | simulated (s) | wall (s) | clamped | non-finite |\n|---|---|---|---|---|---|---|---|"
+    md.push_str("## Runs\n\n");
+    md.push_str(&run_table(reports.iter().flat_map(|r| &r.runs)));
+    md
+}
+
+/// The markdown table of simulation runs: resolution, size, steps, times, wall leaks.
+pub fn run_table<'a>(runs: impl IntoIterator<Item = &'a RunInfo>) -> String {
+    let mut t = String::from(
+        "| run | r (m) | fluid particles | steps | simulated (s) | wall (s) | clamped | non-finite |\n|---|---|---|---|---|---|---|---|\n",
     );
-    for i in reports.iter().flat_map(|r| &r.runs) {
+    for i in runs {
         let _ = writeln!(
-            md,
+            t,
             "| {} | {} | {} | {} | {:.3} | {:.1} | {} | {} |",
             i.label,
             i.particle_radius,
@@ -137,5 +143,5 @@ pub fn render(settings: Settings, reports: &[CaseReport], wall_s: f64) -> String
             i.non_finite
         );
     }
-    md
+    t
 }
