@@ -110,7 +110,7 @@ fn invalid(key: impl Into<String>, message: impl Into<String>) -> SceneError {
 /// [`Scene::validate`].
 pub fn validate(scene: &Scene) -> Result<(), SceneError> {
     let tank = &scene.tank;
-    let eps = 1.0e-9 * (tank.max[0] - tank.min[0]).max(tank.max[1] - tank.min[1]);
+    let eps = tank.edge_tolerance();
     let inside = |key: String, v: f64, axis: usize| -> Result<(), SceneError> {
         if !v.is_finite() {
             return Err(invalid(key, format!("must be a finite number, got {v}")));
@@ -198,7 +198,7 @@ pub fn sample(sim: &Simulation, probe: &Probe) -> f64 {
 /// the water into the wall; `None` inside the tank. In a corner the side wall wins.
 pub fn tank_face_normal(scene: &Scene, at: Point) -> Option<Vec2> {
     let (lo, hi) = (scene.tank.min, scene.tank.max);
-    let eps = 1.0e-9 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    let eps = scene.tank.edge_tolerance();
     if (at[0] - lo[0]).abs() <= eps {
         Some(Vec2::NEG_X)
     } else if (at[0] - hi[0]).abs() <= eps {

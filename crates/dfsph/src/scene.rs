@@ -55,6 +55,14 @@ pub struct Tank {
     pub max: Point,
 }
 
+impl Tank {
+    /// Coordinates closer than this count as equal when a scene places something on or
+    /// inside the tank's boundary (1e-9 of its larger side: rounding in a scene file), m.
+    pub fn edge_tolerance(&self) -> f64 {
+        1.0e-9 * (self.max[0] - self.min[0]).max(self.max[1] - self.min[1])
+    }
+}
+
 /// A rectangle of fluid. Particle centres lie at `min + d/2 + (i, j)·d` inside it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -372,7 +380,7 @@ impl Scene {
         if self.fluid.is_empty() {
             return Err(invalid("fluid", "at least one fluid block is needed"));
         }
-        let eps = 1.0e-9 * tank_size[0].max(tank_size[1]);
+        let eps = self.tank.edge_tolerance();
         for (i, b) in self.fluid.iter().enumerate() {
             let key = format!("fluid[{i}]");
             point(&format!("{key}.min"), b.min)?;
