@@ -41,6 +41,11 @@ struct State {
 }
 
 impl State {
+    /// Particle spacing d, m.
+    fn spacing(&self) -> f32 {
+        0.5 * self.kernel.support()
+    }
+
     /// Densities, factors and cached gradients, as at the start of a step.
     fn density_and_factor(&mut self) {
         solver::density_and_factor(
@@ -192,6 +197,7 @@ fn passes(c: &mut Criterion) {
                         solver::density_solve(
                             s.volume,
                             dt,
+                            solver::max_compression_correction(dt, s.spacing()),
                             false,
                             fluid,
                             &s.boundary,

@@ -330,6 +330,7 @@ impl Simulation {
                 Method::Dfsph => solver::density_solve(
                     self.volume,
                     dt,
+                    solver::max_compression_correction(dt, self.spacing),
                     warm,
                     &mut self.fluid,
                     &self.boundary,

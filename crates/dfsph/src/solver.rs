@@ -371,10 +371,14 @@ pub fn divergence_solve(
 /// Density solve (TVCG 2017, Algorithm 3): correct the predicted velocities so that the
 /// predicted density `s_i + Δt·Dρ_i/Dt/ρ0` is 1 wherever the fluid is compressed. Afterwards
 /// `fluid.pressure_over_rho0` holds p/ρ0 of the step, used as the next warm start.
+///
+/// At most `max_correction` of a particle's existing compression `s_i − 1` is removed in this
+/// step (see [`max_compression_correction`]); the rest waits for the next steps.
 #[allow(clippy::too_many_arguments)]
 pub fn density_solve(
     volume: f32,
     dt: f32,
+    max_correction: f32,
     warm_start: bool,
     fluid: &mut FluidParticles,
     boundary: &BoundaryParticles,
@@ -400,7 +404,7 @@ pub fn density_solve(
         nb,
         limits,
         scratch,
-        |i, rate| density[i] + dt * rate - 1.0,
+        |i, rate| (density[i] - 1.0).min(max_correction) + dt * rate,
         100.0,
         1.0 / dt,
         &mut total,
@@ -455,6 +459,28 @@ pub fn wcsph_pressure(
         avg_error_pct: if n > 0 { sum / n as f64 * 100.0 } else { 0.0 },
         max_error_pct: max * 100.0,
     }
+}
+
+/// The fastest a density solve may push particles apart to undo compression that already
+/// exists at the start of a step, m/s.
+///
+/// A well-resolved flow starts each step less than 1 % compressed, and removing that over one
+/// step takes a few cm/s. A user can create far more: a wall drawn over the water, fluid pulled
+/// into a gap narrower than a particle, a pour onto a moving surface. Undoing a compression δ
+/// in one step takes a speed of about δ·d/Δt, which grows as Δt shrinks: a 30 % overlap
+/// undone in a 10 µs step throws particles at hundreds of m/s, the next step's CFL Δt is
+/// smaller still, and the kicks feed on themselves (seen in `dfsph2d stress`, which ended in
+/// particles at 1,900 m/s). Capping the part of the source term that comes from existing
+/// compression spreads such a correction over several steps at this speed instead; the part
+/// from the velocities (`Δt·Dρ/Dt`) is never capped, so the fluid still cannot compress
+/// further.
+pub const MAX_CORRECTION_SPEED: f32 = 2.0;
+
+/// The largest existing relative compression one step of length `dt` removes, for particle
+/// spacing `d`: a correction of that size moves particles apart at about
+/// [`MAX_CORRECTION_SPEED`].
+pub fn max_compression_correction(dt: f32, d: f32) -> f32 {
+    MAX_CORRECTION_SPEED * dt / d
 }
 
 /// Share of the previous step's stiffness applied as the warm start. A full warm start
