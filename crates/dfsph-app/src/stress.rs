@@ -222,11 +222,7 @@ pub fn run<W: std::io::Write>(
         let s = match stepped {
             Ok(s) => s,
             Err(panic) => {
-                let msg = panic
-                    .downcast_ref::<String>()
-                    .map(String::as_str)
-                    .or_else(|| panic.downcast_ref::<&str>().copied())
-                    .unwrap_or("unknown panic");
+                let msg = dfsph_viewer::panic_message(panic.as_ref());
                 out.violation = Some(Violation {
                     step: out.steps,
                     what: format!("the solver panicked: {msg}"),

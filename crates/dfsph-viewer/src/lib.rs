@@ -120,11 +120,7 @@ pub fn run(opts: ViewerOptions) -> anyhow::Result<()> {
             ))
         }
         Err(panic) => {
-            let msg = panic
-                .downcast_ref::<String>()
-                .map(String::as_str)
-                .or_else(|| panic.downcast_ref::<&str>().copied())
-                .unwrap_or("unknown panic");
+            let msg = panic_message(panic.as_ref());
             return Err(anyhow!("the viewer window failed: {msg}\n{HEADLESS_HINT}"));
         }
     }
@@ -150,6 +146,16 @@ fn check_display() -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The text of a caught panic (`std::panic::catch_unwind`'s payload): panics raised with a
+/// message carry a `String` or a `&str`; anything else is reported as "unknown panic".
+pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
+    payload
+        .downcast_ref::<String>()
+        .map(String::as_str)
+        .or_else(|| payload.downcast_ref::<&str>().copied())
+        .unwrap_or("unknown panic")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -167,5 +173,18 @@ mod tests {
         let msg = format!("{err:#}");
         assert!(msg.contains("dfsph2d run"), "{msg}");
         assert!(msg.contains("DISPLAY"), "{msg}");
+    }
+
+    #[test]
+    fn panic_message_reads_formatted_static_and_foreign_payloads() {
+        let quiet = std::panic::take_hook();
+        std::panic::set_hook(Box::new(|_| {}));
+        let formatted = std::panic::catch_unwind(|| panic!("step {} failed", 7)).unwrap_err();
+        let fixed = std::panic::catch_unwind(|| panic!("no fluid")).unwrap_err();
+        let foreign = std::panic::catch_unwind(|| std::panic::panic_any(42u32)).unwrap_err();
+        std::panic::set_hook(quiet);
+        assert_eq!(panic_message(formatted.as_ref()), "step 7 failed");
+        assert_eq!(panic_message(fixed.as_ref()), "no fluid");
+        assert_eq!(panic_message(foreign.as_ref()), "unknown panic");
     }
 }
