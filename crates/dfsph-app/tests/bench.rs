@@ -104,3 +104,78 @@ fn salva_without_the_feature_is_a_clear_error() {
     assert!(stderr.contains("--features salva"), "{stderr}");
     assert!(out.stdout.is_empty());
 }
+
+/// The pids of the living `bench-row` children of `parent` (zombies are not living).
+#[cfg(target_os = "linux")]
+fn bench_rows_of(parent: u32) -> Vec<u32> {
+    let mut rows = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let (Ok(stat), Ok(cmdline)) = (
+            std::fs::read_to_string(entry.path().join("stat")),
+            std::fs::read(entry.path().join("cmdline")),
+        ) else {
+            continue;
+        };
+        // `pid (comm) state ppid ...`; comm may hold spaces, so split after the last ')'.
+        let fields: Vec<&str> = stat[stat.rfind(')').unwrap() + 1..]
+            .split_whitespace()
+            .collect();
+        let living = fields[0] != "Z";
+        if living
+            && fields[1] == parent.to_string()
+            && String::from_utf8_lossy(&cmdline).contains("bench-row")
+        {
+            rows.push(pid);
+        }
+    }
+    rows
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn killing_bench_ends_its_row_process() {
+    use std::time::{Duration, Instant};
+    // 5k for 50 simulated seconds: the row runs far longer than this test waits.
+    let mut bench = Command::new(BIN)
+        .args([
+            "bench", "--sizes", "5k", "--until", "50", "--codes", "dfsph2d",
+        ])
+        .args(["--threads", "1"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("dfsph2d runs");
+    let started = Instant::now();
+    let rows = loop {
+        let rows = bench_rows_of(bench.id());
+        if !rows.is_empty() || started.elapsed() > Duration::from_secs(30) {
+            break rows;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert_eq!(rows.len(), 1, "bench started no row process");
+    let row = rows[0];
+    bench.kill().unwrap();
+    bench.wait().unwrap();
+    let killed = Instant::now();
+    let state = |pid: u32| {
+        std::fs::read_to_string(format!("/proc/{pid}/stat"))
+            .ok()
+            .and_then(|s| {
+                s[s.rfind(')')? + 1..]
+                    .split_whitespace()
+                    .next()
+                    .map(String::from)
+            })
+    };
+    while matches!(state(row).as_deref(), Some(s) if s != "Z") {
+        assert!(
+            killed.elapsed() < Duration::from_secs(10),
+            "the bench-row process {row} outlived its killed parent by 10 s"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}

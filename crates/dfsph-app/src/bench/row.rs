@@ -17,6 +17,7 @@ pub const FRONT_CHECK_TIME: f64 = 0.4;
 
 /// Run one row and print it as one JSON line on stdout.
 pub fn run_row(args: RowArgs) -> Result<(), String> {
+    exit_with_parent();
     if let Some(n) = args.threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(n as usize)
@@ -237,4 +238,24 @@ fn compiled_simd() -> String {
         "none"
     }
     .into()
+}
+
+/// Make this row process end when the `dfsph2d bench` that started it does. Killing the
+/// parent (Ctrl-C in a terminal reaches both, but `kill PID` or a closed CI job does not) left
+/// the row running, taking the CPU from whatever was measured next. On Linux the kernel
+/// sends SIGKILL to the row when its parent dies; the row writes no files, so nothing is left
+/// half-written.
+fn exit_with_parent() {
+    #[cfg(target_os = "linux")]
+    {
+        let parent = std::os::unix::process::parent_id();
+        // SAFETY: prctl with PR_SET_PDEATHSIG only sets a flag on this process.
+        unsafe {
+            libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL);
+        }
+        // The parent may have died between the spawn and the prctl call.
+        if std::os::unix::process::parent_id() != parent {
+            std::process::exit(1);
+        }
+    }
 }
