@@ -254,3 +254,25 @@ fn overlapping_fluid_is_pushed_apart_gently() {
     // the seam has opened).
     assert!(max_speed < 10.0, "pushed apart at {max_speed} m/s");
 }
+
+#[test]
+#[ignore = "known failure, the target of the next solver work: see docs/deep-columns.md"]
+fn a_deep_narrow_column_stays_at_rest() {
+    // 20 x 400 particles (0.1 m x 2 m at d = 5 mm) at rest between two walls. The exact
+    // answer is no motion at all. The Jacobi density solve cannot carry pressure up 400
+    // layers, so the column falls into its bottom rows: 35 m/s and particles through the
+    // floor within 0.3 s (measured 2026-11-21). The 80k dam break and deep water poured in
+    // `dfsph2d stress` fail the same way.
+    let s = Scene::from_json(
+        r#"{"particle_radius": 0.0025, "tank": {"min": [0, 0], "max": [0.1, 2.5]},
+            "fluid": [{"min": [0, 0], "max": [0.1, 2.0]}]}"#,
+    )
+    .unwrap();
+    let mut sim = Simulation::new(&s).unwrap();
+    while sim.time() < 0.3 {
+        let st = *sim.step();
+        assert_eq!(st.clamped + st.non_finite, 0, "{st:?}");
+        // A hydrostatic column: anything faster than 1 % of sqrt(gH) is spurious.
+        assert!(st.max_speed < 0.01 * (9.81f64 * 2.0).sqrt(), "{st:?}");
+    }
+}
