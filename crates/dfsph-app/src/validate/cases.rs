@@ -77,7 +77,12 @@ fn rms(values: impl Iterator<Item = f64>) -> f64 {
 
 pub fn hydrostatic(s: Settings) -> Result<Vec<CaseReport>> {
     const CASE: &str = "Hydrostatic";
-    let (r, until) = if s.quick { (0.025, 2.0) } else { (0.01, 4.0) };
+    // The fluid starts on a square lattice, which is not the packing SPH settles into: it
+    // rearranges in bursts that release kinetic energy, for 3 s in one realisation and 9.5 s
+    // in another (r = 0.01 m; f32 rounding order alone decides which). While it does, the
+    // interpolated pressure on the centre line reads up to 11 % low. 15 s puts the averaging
+    // window (the last quarter) after the rearrangement.
+    let (r, until) = if s.quick { (0.025, 2.0) } else { (0.01, 15.0) };
     let depth = 1.0;
     let mut scene = scene::builtin("hydrostatic").expect("built-in");
     scene.particle_radius = r;
@@ -250,7 +255,10 @@ pub fn hydrostatic(s: Settings) -> Result<Vec<CaseReport>> {
         text,
         "Water {depth} m deep at rest in a 2 m wide tank (built-in scene `hydrostatic`), \
          particle radius r = {r} m, run for {until} s from the lattice at rest (gravity on \
-         from t = 0). Analytic solution: p(y) = ρ0·g·(H − y), density ρ0, velocity 0.\n\n\
+         from t = 0). Analytic solution: p(y) = ρ0·g·(H − y), density ρ0, velocity 0. The \
+         square lattice the fluid starts on rearranges into the packing SPH prefers, in \
+         bursts of kinetic energy that last 3–9.5 s depending on rounding (see the energy \
+         plot); the run is long enough for the readings to be taken after them.\n\n\
          Pressure probes on the centre line x = 1 m (SPH interpolation) and on the floor and \
          the left wall (wall sensors: the fluid's normal force on the wall per unit length; \
          see `docs/scenes.md`); \
