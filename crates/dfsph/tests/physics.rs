@@ -256,6 +256,29 @@ fn overlapping_fluid_is_pushed_apart_gently() {
 }
 
 #[test]
+fn a_very_viscous_tank_at_rest_stays_at_rest() {
+    // ν = 0.2 m²/s at d = 4 cm: the explicit viscosity is stable only below
+    // 0.125·d²/ν = 1 ms, and this scene allows steps of 2.5 ms. Before the viscous bound on
+    // Δt the resting tank reached 34 m/s.
+    let mut s = coarse("hydrostatic", 0.02);
+    s.viscosity.kinematic = 0.2;
+    s.viscosity.boundary_kinematic = 0.2;
+    s.time_step.max = 0.0025;
+    s.time_step.cfl = 0.6;
+    let bound = 0.125 * s.spacing().powi(2) / 0.2;
+    let mut sim = Simulation::new(&s).unwrap();
+    while sim.time() < 0.5 {
+        let st = *sim.step();
+        assert!(
+            st.dt <= bound * 1.0001,
+            "Δt {} over the viscous bound {bound}",
+            st.dt
+        );
+        assert!(st.max_speed < 0.5, "{st:?}");
+    }
+}
+
+#[test]
 #[ignore = "known failure, the target of the next solver work: see docs/deep-columns.md"]
 fn a_deep_narrow_column_stays_at_rest() {
     // 20 x 400 particles (0.1 m x 2 m at d = 5 mm) at rest between two walls. The exact
