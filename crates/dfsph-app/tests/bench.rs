@@ -105,33 +105,31 @@ fn salva_without_the_feature_is_a_clear_error() {
     assert!(out.stdout.is_empty());
 }
 
-/// The pids of the living `bench-row` children of `parent` (zombies are not living).
+/// The parent pid of process `pid` while it is alive; `None` once it has exited or is a
+/// zombie waiting to be reaped.
+#[cfg(target_os = "linux")]
+fn living_parent(pid: u32) -> Option<u32> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // `pid (comm) state ppid ...`; comm may hold spaces, so split after the last ')'.
+    let mut fields = stat[stat.rfind(')')? + 1..].split_whitespace();
+    let state = fields.next()?;
+    let parent = fields.next()?.parse().ok()?;
+    (state != "Z").then_some(parent)
+}
+
+/// The pids of the living `bench-row` children of `parent`.
 #[cfg(target_os = "linux")]
 fn bench_rows_of(parent: u32) -> Vec<u32> {
-    let mut rows = Vec::new();
-    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
-        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
-            continue;
-        };
-        let (Ok(stat), Ok(cmdline)) = (
-            std::fs::read_to_string(entry.path().join("stat")),
-            std::fs::read(entry.path().join("cmdline")),
-        ) else {
-            continue;
-        };
-        // `pid (comm) state ppid ...`; comm may hold spaces, so split after the last ')'.
-        let fields: Vec<&str> = stat[stat.rfind(')').unwrap() + 1..]
-            .split_whitespace()
-            .collect();
-        let living = fields[0] != "Z";
-        if living
-            && fields[1] == parent.to_string()
-            && String::from_utf8_lossy(&cmdline).contains("bench-row")
-        {
-            rows.push(pid);
-        }
-    }
-    rows
+    std::fs::read_dir("/proc")
+        .unwrap()
+        .flatten()
+        .filter_map(|entry| entry.file_name().to_string_lossy().parse::<u32>().ok())
+        .filter(|&pid| {
+            living_parent(pid) == Some(parent)
+                && std::fs::read(format!("/proc/{pid}/cmdline"))
+                    .is_ok_and(|c| String::from_utf8_lossy(&c).contains("bench-row"))
+        })
+        .collect()
 }
 
 #[cfg(target_os = "linux")]
@@ -161,17 +159,7 @@ fn killing_bench_ends_its_row_process() {
     bench.kill().unwrap();
     bench.wait().unwrap();
     let killed = Instant::now();
-    let state = |pid: u32| {
-        std::fs::read_to_string(format!("/proc/{pid}/stat"))
-            .ok()
-            .and_then(|s| {
-                s[s.rfind(')')? + 1..]
-                    .split_whitespace()
-                    .next()
-                    .map(String::from)
-            })
-    };
-    while matches!(state(row).as_deref(), Some(s) if s != "Z") {
+    while living_parent(row).is_some() {
         assert!(
             killed.elapsed() < Duration::from_secs(10),
             "the bench-row process {row} outlived its killed parent by 10 s"
