@@ -247,10 +247,9 @@ pub struct SolverScratch {
 /// stop when the average compression (in percent, after `to_pct`) is within tolerance, else
 /// turn residuals into stiffness increments, apply them, and accumulate them into `total`.
 ///
-/// Only compression is corrected, but the clamp is on the accumulated stiffness rather than on
-/// the residual: a particle that the warm start pushed too far apart (negative residual) gets a
-/// negative increment until its stiffness reaches zero. Clamping the residual instead would
-/// make the stiffness a ratchet that only grows from step to step.
+/// Only compression is corrected: residuals are clamped at zero, so within one solve a
+/// particle's stiffness only grows. What a previous step left too high is not taken back here;
+/// the warm start keeps only part of it (see [`warm_factor`]).
 #[allow(clippy::too_many_arguments)]
 fn jacobi_solve(
     volume: f32,
