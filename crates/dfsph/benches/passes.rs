@@ -77,6 +77,8 @@ fn state(d: f64, steps: usize) -> State {
     let volume = 1.0 / lattice_kernel_sum(&kernel, d);
 
     let mut boundary_grid = Grid::new(kernel.support());
+    // As the simulation sizes it (`Simulation::update_neighborhoods`).
+    boundary_grid.set_dense_cells_floor(4 * sim.positions().len());
     let order = boundary_grid.build(sim.boundary_positions()).to_vec();
     let mut boundary = BoundaryParticles::default();
     for &i in &order {

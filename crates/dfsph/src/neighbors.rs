@@ -80,6 +80,9 @@ pub struct Grid {
     sorted: Vec<Vec2>,
     /// Scratch: the fill position of each key during the counting sort.
     cursor: Vec<u32>,
+    /// A dense grid is used up to this many cells even for few points (see
+    /// [`Grid::set_dense_cells_floor`]).
+    dense_cells_floor: usize,
 }
 
 impl Grid {
@@ -90,6 +93,15 @@ impl Grid {
             inv_cell: 1.0 / (radius * (1.0 + 1.0e-4)),
             ..Default::default()
         }
+    }
+
+    /// Keep the grid dense (no hashing) up to `cells` cells however few points it holds. A
+    /// grid of wall particles spans the whole tank with a few points per cell along its
+    /// edges; hashed, every fluid query pays a hash and scans buckets shared with far-away
+    /// wall cells. Dense, the empty cells cost one comparison each. The caller sizes this by
+    /// the number of queries it will make.
+    pub fn set_dense_cells_floor(&mut self, cells: usize) {
+        self.dense_cells_floor = cells;
     }
 
     /// The support radius this grid answers for.
@@ -107,7 +119,7 @@ impl Grid {
         let nx = (extent.x * self.inv_cell).floor() as i64 + 1;
         let ny = (extent.y * self.inv_cell).floor() as i64 + 1;
         let dense_cells = (nx as f64) * (ny as f64);
-        let limit = (4 * n).max(4096) as f64;
+        let limit = (4 * n).max(4096).max(self.dense_cells_floor) as f64;
         if n == 0 || dense_cells <= limit {
             self.hashed = false;
             self.origin = lo;
@@ -231,6 +243,29 @@ impl Grid {
         }
     }
 
+    /// The points of the (up to) 3 x 3 cells around cell `c` of a dense grid, as one range
+    /// per non-empty row of three cells; returns how many ranges were written.
+    #[inline]
+    fn dense_block(&self, c: [i64; 2], block: &mut [(u32, u32); 3]) -> usize {
+        let mut len = 0;
+        let x0 = c[0].saturating_sub(1).max(0);
+        let x1 = c[0].saturating_add(1).min(self.dims[0] - 1);
+        if x0 > x1 {
+            return 0;
+        }
+        for cy in c[1].saturating_sub(1).max(0)..=c[1].saturating_add(1).min(self.dims[1] - 1) {
+            // The cells of one row are consecutive keys, so their points are one range.
+            let row = cy * self.dims[0];
+            let start = self.cell_start[(row + x0) as usize];
+            let end = self.cell_start[(row + x1) as usize + 1];
+            if start < end {
+                block[len] = (start, end);
+                len += 1;
+            }
+        }
+        len
+    }
+
     /// Neighbour lists of `queries` against this grid's points. With `exclude_self`, the
     /// queries are this grid's own sorted points and a point is not its own neighbour.
     pub fn neighbor_lists(&self, queries: &[Vec2], exclude_self: bool, out: &mut NeighborLists) {
@@ -250,14 +285,42 @@ impl Grid {
             .for_each(|(c, (counts, buf))| {
                 buf.clear();
                 let base = c * CHUNK;
+                if self.hashed {
+                    for (k, count) in counts.iter_mut().enumerate() {
+                        let i = base + k;
+                        let before = buf.len();
+                        self.for_each_near(queries[i], |j, _| {
+                            if !(exclude_self && j as usize == i) {
+                                buf.push(j);
+                            }
+                        });
+                        *count = (buf.len() - before) as u32;
+                    }
+                    return;
+                }
+                // Dense grid: queries arrive sorted by cell, so the ranges of the 3 x 3
+                // block are looked up once per run of queries in the same cell.
+                let r2 = self.radius * self.radius;
+                let mut block_cell = [i64::MIN; 2];
+                let mut block = [(0u32, 0u32); 3];
+                let mut block_len = 0;
                 for (k, count) in counts.iter_mut().enumerate() {
                     let i = base + k;
+                    let p = queries[i];
+                    let c = self.cell_of(p);
+                    if c != block_cell {
+                        block_cell = c;
+                        block_len = self.dense_block(c, &mut block);
+                    }
                     let before = buf.len();
-                    self.for_each_near(queries[i], |j, _| {
-                        if !(exclude_self && j as usize == i) {
-                            buf.push(j);
+                    for &(start, end) in &block[..block_len] {
+                        for j in start..end {
+                            let r = p - self.sorted[j as usize];
+                            if r.length_squared() < r2 && !(exclude_self && j as usize == i) {
+                                buf.push(j);
+                            }
                         }
-                    });
+                    }
                     *count = (buf.len() - before) as u32;
                 }
             });
@@ -391,6 +454,62 @@ mod tests {
                 .collect();
             assert_eq!(got, want);
         }
+    }
+
+    #[test]
+    fn a_wall_grid_kept_dense_answers_queries_inside_and_far_outside() {
+        // Two wall layers around a 4 m x 3 m tank: few points over a large box, which
+        // would be hashed without the floor.
+        let r = 0.01f32;
+        let mut walls = Vec::new();
+        for layer in 0..2 {
+            let o = -(layer as f32 + 0.5) * r;
+            let mut x = o;
+            while x <= 4.0 - o {
+                walls.push(Vec2::new(x, o));
+                walls.push(Vec2::new(x, 3.0 - o));
+                x += r;
+            }
+            let mut y = o;
+            while y <= 3.0 - o {
+                walls.push(Vec2::new(o, y));
+                walls.push(Vec2::new(4.0 - o, y));
+                y += r;
+            }
+        }
+        let radius = 2.0 * r;
+        let mut grid = Grid::new(radius);
+        grid.build(&walls);
+        assert!(grid.hashed, "without the floor this wall grid is hashed");
+        grid.set_dense_cells_floor(1 << 18);
+        grid.build(&walls);
+        assert!(!grid.hashed, "the floor keeps it dense");
+        let sorted_walls = grid.sorted_points().to_vec();
+        // Queries sorted along x then y (runs in one cell, as the fluid arrives), then
+        // points on cell borders, outside the tank and very far away.
+        let mut queries: Vec<Vec2> = (0..4000)
+            .map(|i| Vec2::new((i / 60) as f32 * 0.0061, (i % 60) as f32 * 0.0049))
+            .collect();
+        queries.extend([
+            Vec2::new(0.0, 0.0),
+            Vec2::new(radius * 3.0, -radius),
+            Vec2::new(4.0 + radius, 1.5),
+            Vec2::new(-0.05, 3.05),
+            Vec2::new(1.0e6, -1.0e6),
+            Vec2::new(-3.0e4, 2.0),
+        ]);
+        let mut lists = NeighborLists::default();
+        grid.neighbor_lists(&queries, false, &mut lists);
+        for (i, &p) in queries.iter().enumerate() {
+            let mut got = lists.of(i).to_vec();
+            got.sort_unstable();
+            let want: Vec<u32> = (0..sorted_walls.len())
+                .filter(|&j| (p - sorted_walls[j]).length_squared() < radius * radius)
+                .map(|j| j as u32)
+                .collect();
+            assert_eq!(got, want, "query {i} at {p:?}");
+        }
+        assert!(lists.pair_count() > 0);
     }
 
     #[test]

@@ -216,6 +216,8 @@ impl Simulation {
 
     /// Sort both particle sets, rebuild neighbour lists, densities and factors.
     fn update_neighborhoods(&mut self) {
+        self.boundary_grid
+            .set_dense_cells_floor(4 * self.fluid.position.len());
         let order = self.boundary_grid.build(&self.boundary.position).to_vec();
         self.boundary.permute(&order, &mut self.scratch);
         if self.boundary_changed {
