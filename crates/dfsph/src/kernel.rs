@@ -77,8 +77,26 @@ impl CubicSpline {
     /// `W` and `∇W` together, sharing the square root.
     #[inline]
     pub fn w_and_grad(&self, r: Vec2) -> (f32, Vec2) {
+        // One square root for both: this is the per-pair work of the density pass.
         let rl = r.length();
-        (self.w(rl), self.grad_w(r))
+        let q = rl * self.inv_h;
+        if q >= 1.0 {
+            return (0.0, Vec2::ZERO);
+        }
+        let (w, dwdq) = if q <= 0.5 {
+            let q2 = q * q;
+            (
+                self.k * (6.0 * q2 * q - 6.0 * q2 + 1.0),
+                self.l * q * (3.0 * q - 2.0),
+            )
+        } else {
+            let a = 1.0 - q;
+            (2.0 * self.k * a * a * a, -self.l * a * a)
+        };
+        if rl <= 1.0e-9 {
+            return (w, Vec2::ZERO);
+        }
+        (w, r * (dwdq * self.inv_h / rl))
     }
 }
 
@@ -118,6 +136,29 @@ mod tests {
         assert_eq!(k.grad_w(Vec2::new(0.04, 0.0)), Vec2::ZERO);
         assert_eq!(k.grad_w(Vec2::new(0.03, 0.03)), Vec2::ZERO);
         assert!(k.w(0.0399) > 0.0);
+    }
+
+    #[test]
+    fn w_and_grad_agrees_with_w_and_grad_w_exactly() {
+        // The density pass uses the fused form; the solver's other passes use grad_w.
+        let k = CubicSpline::new(0.04);
+        let mut points = vec![
+            Vec2::ZERO,
+            Vec2::new(1.0e-10, 0.0),
+            Vec2::new(0.02, 0.0),
+            Vec2::new(0.0, -0.04),
+            Vec2::new(0.05, 0.01),
+        ];
+        for i in 0..400 {
+            let a = i as f32 * 0.37;
+            let r = (i as f32 / 400.0) * 0.045;
+            points.push(Vec2::new(r * a.cos(), r * a.sin()));
+        }
+        for r in points {
+            let (w, g) = k.w_and_grad(r);
+            assert_eq!(w, k.w(r.length()), "W at {r:?}");
+            assert_eq!(g, k.grad_w(r), "∇W at {r:?}");
+        }
     }
 
     #[test]

@@ -59,61 +59,53 @@ pub fn density_and_factor(
     let eps = 1.0e-6 / (kernel.support() * kernel.support());
     let self_w = volume * kernel.w_zero();
 
-    // Gradients: one parallel pass per list, split along particle ranges.
-    split_by_particle(fluid_grad, fluid_lists)
-        .into_par_iter()
-        .enumerate()
-        .for_each(|(i, grads)| {
-            let xi = pos[i];
-            for (g, &j) in grads.iter_mut().zip(fluid_lists.of(i)) {
-                *g = kernel.grad_w(xi - pos[j as usize]);
-            }
-        });
-    split_by_particle(boundary_grad, boundary_lists)
-        .into_par_iter()
-        .enumerate()
-        .for_each(|(i, grads)| {
-            let xi = pos[i];
-            for (g, &b) in grads.iter_mut().zip(boundary_lists.of(i)) {
-                *g = kernel.grad_w(xi - bpos[b as usize]);
-            }
-        });
-
-    let fluid_grad = &*fluid_grad;
-    let boundary_grad = &*boundary_grad;
+    // One parallel pass over chunks of particles; each chunk owns the gradient slots of its
+    // particles' pairs.
     fluid
         .density_ratio
-        .par_iter_mut()
-        .zip(fluid.factor.par_iter_mut())
+        .par_chunks_mut(PAIR_CHUNK)
+        .zip(fluid.factor.par_chunks_mut(PAIR_CHUNK))
+        .zip(split_by_chunk(fluid_grad, fluid_lists))
+        .zip(split_by_chunk(boundary_grad, boundary_lists))
         .enumerate()
-        .for_each(|(i, (s, a))| {
-            let xi = pos[i];
-            let mut density = self_w;
-            let mut grad_sum = Vec2::ZERO;
-            let mut grad_sq = 0.0f32;
-            let r = fluid_lists.range(i);
-            for (&j, &g) in fluid_lists.indices[r.clone()].iter().zip(&fluid_grad[r]) {
-                density += volume * kernel.w((xi - pos[j as usize]).length());
-                let vg = volume * g;
-                grad_sum += vg;
-                grad_sq += vg.length_squared();
+        .for_each(|(c, (((s, a), fg), bg))| {
+            let base = c * PAIR_CHUNK;
+            let (mut fg, mut bg) = (fg, bg);
+            for (k, (s, a)) in s.iter_mut().zip(a.iter_mut()).enumerate() {
+                let i = base + k;
+                let xi = pos[i];
+                let mut density = self_w;
+                let mut grad_sum = Vec2::ZERO;
+                let mut grad_sq = 0.0f32;
+                let neighbors = fluid_lists.of(i);
+                let (grads, rest) = fg.split_at_mut(neighbors.len());
+                fg = rest;
+                for (g, &j) in grads.iter_mut().zip(neighbors) {
+                    let (w, grad) = kernel.w_and_grad(xi - pos[j as usize]);
+                    *g = grad;
+                    density += volume * w;
+                    let vg = volume * grad;
+                    grad_sum += vg;
+                    grad_sq += vg.length_squared();
+                }
+                let walls = boundary_lists.of(i);
+                let (grads, rest) = bg.split_at_mut(walls.len());
+                bg = rest;
+                for (g, &b) in grads.iter_mut().zip(walls) {
+                    let (w, grad) = kernel.w_and_grad(xi - bpos[b as usize]);
+                    *g = grad;
+                    let vb = bvol[b as usize];
+                    density += vb * w;
+                    grad_sum += vb * grad;
+                }
+                *s = density;
+                let denom = grad_sum.length_squared() + grad_sq;
+                *a = if denom > eps {
+                    (1.0 / denom).min(max_factor)
+                } else {
+                    0.0
+                };
             }
-            let r = boundary_lists.range(i);
-            for (&b, &g) in boundary_lists.indices[r.clone()]
-                .iter()
-                .zip(&boundary_grad[r])
-            {
-                let vb = bvol[b as usize];
-                density += vb * kernel.w((xi - bpos[b as usize]).length());
-                grad_sum += vb * g;
-            }
-            *s = density;
-            let denom = grad_sum.length_squared() + grad_sq;
-            *a = if denom > eps {
-                (1.0 / denom).min(max_factor)
-            } else {
-                0.0
-            };
         });
 }
 
@@ -140,12 +132,18 @@ pub fn lattice_factor(kernel: &CubicSpline, d: f32, volume: f32) -> f32 {
 /// over a few iterations instead of one.
 pub const MAX_FACTOR_RATIO: f32 = 4.0;
 
-/// Split a per-pair array into one mutable slice per particle.
-fn split_by_particle<'a, T>(values: &'a mut [T], lists: &NeighborLists) -> Vec<&'a mut [T]> {
-    let mut out = Vec::with_capacity(lists.len());
+/// Particles per parallel work item of [`density_and_factor`].
+const PAIR_CHUNK: usize = 512;
+
+/// Split a per-pair array into one mutable slice per chunk of [`PAIR_CHUNK`] particles.
+fn split_by_chunk<'a, T>(values: &'a mut [T], lists: &NeighborLists) -> Vec<&'a mut [T]> {
+    let n = lists.len();
+    let mut out = Vec::with_capacity(n.div_ceil(PAIR_CHUNK));
     let mut rest = values;
-    for i in 0..lists.len() {
-        let (head, tail) = rest.split_at_mut(lists.range(i).len());
+    for start in (0..n).step_by(PAIR_CHUNK) {
+        let end = (start + PAIR_CHUNK).min(n);
+        let len = lists.offsets[end] as usize - lists.offsets[start] as usize;
+        let (head, tail) = rest.split_at_mut(len);
         out.push(head);
         rest = tail;
     }
