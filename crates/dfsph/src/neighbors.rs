@@ -116,8 +116,10 @@ impl Grid {
         let n = points.len();
         let (lo, hi) = bounds(points);
         let extent = hi - lo;
-        let nx = (extent.x * self.inv_cell).floor() as i64 + 1;
-        let ny = (extent.y * self.inv_cell).floor() as i64 + 1;
+        // `as` saturates a huge extent (a coordinate of 1e308 in a scene file); the addition
+        // must not wrap it round to a negative cell count.
+        let nx = ((extent.x * self.inv_cell).floor() as i64).saturating_add(1);
+        let ny = ((extent.y * self.inv_cell).floor() as i64).saturating_add(1);
         let dense_cells = (nx as f64) * (ny as f64);
         let limit = (4 * n).max(4096).max(self.dense_cells_floor) as f64;
         if n == 0 || dense_cells <= limit {
@@ -187,8 +189,11 @@ impl Grid {
     #[inline]
     fn point_key(&self, p: Vec2) -> u32 {
         let [cx, cy] = self.cell_of(p);
-        let clamped = [cx.clamp(0, self.dims[0] - 1), cy.clamp(0, self.dims[1] - 1)];
-        let c = if self.hashed { [cx, cy] } else { clamped };
+        let c = if self.hashed {
+            [cx, cy]
+        } else {
+            [cx.clamp(0, self.dims[0] - 1), cy.clamp(0, self.dims[1] - 1)]
+        };
         self.key_of_cell(c).unwrap_or(0)
     }
 
@@ -430,6 +435,32 @@ mod tests {
         grid.build(&pts);
         assert!(grid.hashed, "a huge bounding box should switch to hashing");
         check(pts, 0.02);
+    }
+
+    #[test]
+    fn extents_beyond_the_cell_range_do_not_panic() {
+        // A scene coordinate of 1e308 becomes an infinite f32; f32::MAX apart overflows the
+        // cell count. Both once wrapped the count to a negative number.
+        for far in [
+            Vec2::new(f32::MAX, f32::MAX),
+            Vec2::new(-f32::MAX, f32::MAX),
+            Vec2::new(f32::INFINITY, 0.0),
+        ] {
+            let pts = vec![Vec2::ZERO, Vec2::new(0.01, 0.0), far];
+            let mut grid = Grid::new(0.02);
+            grid.set_dense_cells_floor(1 << 18);
+            grid.build(&pts);
+            let mut lists = NeighborLists::default();
+            grid.neighbor_lists(grid.sorted_points().to_vec().as_slice(), true, &mut lists);
+            let near: usize = (0..3)
+                .filter(|&i| grid.sorted_points()[i].x.abs() < 1.0)
+                .map(|i| lists.of(i).len())
+                .sum();
+            assert_eq!(
+                near, 2,
+                "the two close points find each other next to {far:?}"
+            );
+        }
     }
 
     #[test]

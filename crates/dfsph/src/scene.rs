@@ -215,6 +215,11 @@ impl Default for ViscosityParams {
 /// bytes plus its neighbour lists): a scene over this is rejected as asking for too much memory.
 pub const MAX_OBSTACLE_PARTICLES: usize = 10_000_000;
 
+/// Largest accepted `time_step.max`, s. Far above any stable step for a particle radius under
+/// a metre; it keeps a number that is not a time step (1e308 in a fuzzed file, which is
+/// infinite in single precision) out of the solver.
+pub const MAX_TIME_STEP: f64 = 1.0;
+
 /// Why a scene was rejected. The message names the offending key (`solver.max_iterations`,
 /// `fluid[1].max`, ...).
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
@@ -542,6 +547,15 @@ impl Scene {
         }
         positive("time_step.min", t.min)?;
         positive("time_step.max", t.max)?;
+        if t.max > MAX_TIME_STEP {
+            return Err(invalid(
+                "time_step.max",
+                format!(
+                    "{} s is unreasonably large (at most {MAX_TIME_STEP} s)",
+                    t.max
+                ),
+            ));
+        }
         if t.min > t.max {
             return Err(invalid(
                 "time_step.min",
@@ -749,6 +763,7 @@ mod tests {
                 "solver.density_tolerance_pct",
             ),
             ("{\"time_step\": {\"cfl\": 2}}", "time_step.cfl"),
+            ("{\"time_step\": {\"max\": 1e308}}", "time_step.max"),
             (
                 "{\"time_step\": {\"min\": 0.1, \"max\": 0.01}}",
                 "time_step.min",

@@ -452,7 +452,7 @@ impl Simulation {
     }
 
     /// CFL condition `Δt = λ·d / v_max` (v_max includes moving walls; WCSPH adds the speed of
-    /// sound), clamped to the scene's bounds.
+    /// sound), at most `√(λ·d/|g|)`, clamped to the scene's bounds.
     fn cfl_time_step(&self) -> f32 {
         let ts = &self.scene.time_step;
         let fluid_max = self
@@ -472,11 +472,18 @@ impl Simulation {
             let s = &self.scene.solver;
             v_max += (s.wcsph_exponent * s.wcsph_stiffness / self.scene.rest_density).sqrt() as f32;
         }
-        let dt = if v_max > 0.0 {
+        let mut dt = if v_max > 0.0 {
             ts.cfl as f32 * self.spacing / v_max
         } else {
             ts.max as f32
         };
+        // The speed gravity adds during the step, |g|·Δt, must obey the same condition:
+        // Δt ≤ λ·d / (|g|·Δt). It binds only for a still fluid under a large `max`, whose
+        // first step would otherwise drop every particle by ½·|g|·max².
+        let g = self.gravity.length();
+        if g > 0.0 {
+            dt = dt.min((ts.cfl as f32 * self.spacing / g).sqrt());
+        }
         // The explicit Laplacian viscosity is stable only below VISCOUS_STABILITY·h²/ν
         // (Morris et al. 1997, eq. 34, h the smoothing length, our spacing d). This bound
         // beats the scene's minimum Δt: a step below the minimum is slow, one above the
