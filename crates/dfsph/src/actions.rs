@@ -6,7 +6,7 @@ use glam::Vec2;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::boundary::{BodyId, BoundarySamples};
+use crate::boundary::{Body, BodyId, BoundarySamples};
 use crate::forces::PointerForce;
 use crate::neighbors::Grid;
 use crate::scene::{Scene, SolverParams, TimeStepParams, ViscosityParams};
@@ -267,7 +267,12 @@ impl Simulation {
     /// Add a drawn wall; returns (fluid removed, boundary particles added).
     fn add_wall(&mut self, polyline: &[Vec2]) -> (usize, usize) {
         let body = self.bodies.len() as BodyId;
-        self.bodies.push(Default::default());
+        // Drawn walls move with the tank (see `update_body_motion`), from the moment they are
+        // drawn.
+        self.bodies.push(Body {
+            velocity: self.bodies[0].velocity,
+            ..Default::default()
+        });
         let mut samples = BoundarySamples::default();
         samples.add_polyline(polyline, self.spacing, body);
         let added = samples.positions.len();
@@ -335,6 +340,69 @@ mod tests {
         assert_eq!(tank_after, tank_particles);
         sim.step();
         assert!(sim.positions().iter().all(|p| p.is_finite()));
+    }
+
+    #[test]
+    fn obstacles_and_drawn_walls_move_with_the_shaken_tank() {
+        let mut s = scene::builtin("dam-break").unwrap();
+        s.particle_radius = 0.05;
+        s.obstacles.push(scene::Obstacle::Rect {
+            min: [2.0, 0.0],
+            max: [2.2, 0.4],
+        });
+        let mut sim = Simulation::new(&s).unwrap();
+        let start: Vec<Vec2> = sim.boundary_positions().to_vec();
+        let start_bodies: Vec<BodyId> = sim.boundary_bodies().to_vec();
+        sim.apply(&Action::ShakeTank { direction: 1.0 });
+        for _ in 0..20 {
+            sim.step();
+        }
+        // A wall drawn while the tank is moving moves with it from then on. Bodies: 0 the
+        // tank, 1 the rectangle, 2 the drawn wall.
+        sim.apply(&Action::AddWall {
+            polyline: vec![Vec2::new(3.0, 1.0), Vec2::new(3.5, 1.0)],
+        });
+        let drawn: Vec<Vec2> = sim
+            .boundary_positions()
+            .iter()
+            .zip(sim.boundary_bodies())
+            .filter(|(_, &b)| b == 2)
+            .map(|(p, _)| *p)
+            .collect();
+        assert!(!drawn.is_empty());
+        let (tank_lo, _) = sim.tank_interior();
+        let moved_before = tank_lo.x - s.tank.min[0] as f32;
+        for _ in 0..60 {
+            sim.step();
+        }
+        let (tank_lo, _) = sim.tank_interior();
+        let moved = tank_lo.x - s.tank.min[0] as f32;
+        assert!(moved > 0.01, "the tank moved {moved} m");
+        // Particles are re-sorted every step: compare each body's mean position.
+        let mean = |pos: &[Vec2], bodies: &[BodyId], body: BodyId| -> Vec2 {
+            let (sum, n) = pos
+                .iter()
+                .zip(bodies)
+                .filter(|(_, &b)| b == body)
+                .fold((Vec2::ZERO, 0.0), |(s, n), (p, _)| (s + *p, n + 1.0));
+            sum / n
+        };
+        for body in [0, 1] {
+            let shift = mean(sim.boundary_positions(), sim.boundary_bodies(), body)
+                - mean(&start, &start_bodies, body);
+            assert!(
+                (shift.x - moved).abs() < 1.0e-4 && shift.y.abs() < 1.0e-6,
+                "body {body} moved by {shift:?}, the tank by {moved}"
+            );
+        }
+        let now = mean(sim.boundary_positions(), sim.boundary_bodies(), 2);
+        let then = drawn.iter().copied().sum::<Vec2>() / drawn.len() as f32;
+        let shift = now - then;
+        assert!(
+            (shift.x - (moved - moved_before)).abs() < 1.0e-4,
+            "the drawn wall moved by {shift:?}, the tank by {}",
+            moved - moved_before
+        );
     }
 
     #[test]

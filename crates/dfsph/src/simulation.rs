@@ -500,7 +500,8 @@ impl Simulation {
 
     /// Tank motion from the shake drive: a critically damped spring pulls the tank towards
     /// `drive · MAX_SHAKE_OFFSET`, with bounded acceleration and speed, so holding a key
-    /// slides the tank over and releasing it brings the tank back.
+    /// slides the tank over and releasing it brings the tank back. Every body (obstacles,
+    /// drawn walls) moves with the tank.
     fn update_body_motion(&mut self) {
         let dt = self.last_dt;
         let tank = &mut self.bodies[0];
@@ -510,13 +511,14 @@ impl Simulation {
             .clamp(-MAX_SHAKE_ACCELERATION, MAX_SHAKE_ACCELERATION);
         let vx = (tank.velocity.x + acc * dt).clamp(-MAX_SHAKE_SPEED, MAX_SHAKE_SPEED);
         if vx != tank.velocity.x || tank.velocity.y != 0.0 {
-            tank.velocity = Vec2::new(vx, 0.0);
-            let bodies = &self.bodies;
-            self.boundary
-                .velocity
-                .par_iter_mut()
-                .zip(self.boundary.body.par_iter())
-                .for_each(|(v, &b)| *v = bodies[b as usize].velocity);
+            // Obstacles and drawn walls are fixed to the tank, as the probes are: shaking
+            // moves the container as one. A static wall that the tank's own wall swept past
+            // would trap and crush the water between them (seen in `dfsph2d stress`).
+            let v = Vec2::new(vx, 0.0);
+            for body in &mut self.bodies {
+                body.velocity = v;
+            }
+            self.boundary.velocity.par_iter_mut().for_each(|u| *u = v);
         }
     }
 
