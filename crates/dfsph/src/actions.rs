@@ -406,6 +406,46 @@ mod tests {
     }
 
     #[test]
+    fn fluid_is_not_placed_inside_or_against_obstacles() {
+        let mut s = scene::builtin("hydrostatic").unwrap();
+        s.particle_radius = 0.025;
+        // A box standing in the water and a wall across it.
+        s.obstacles.push(scene::Obstacle::Rect {
+            min: [0.8, 0.0],
+            max: [1.2, 0.6],
+        });
+        s.obstacles.push(scene::Obstacle::Polyline {
+            points: vec![[0.1, 0.5], [0.6, 0.2]],
+        });
+        let sim = Simulation::new(&s).unwrap();
+        let d = s.spacing() as f32;
+        let walls: Vec<Vec2> = sim
+            .boundary_positions()
+            .iter()
+            .zip(sim.boundary_bodies())
+            .filter(|(_, &b)| b != 0)
+            .map(|(p, _)| *p)
+            .collect();
+        for p in sim.positions() {
+            let in_box = p.x >= 0.8 && p.x <= 1.2 && p.y <= 0.6;
+            assert!(!in_box, "fluid particle at {p:?} inside the box");
+            let nearest = walls
+                .iter()
+                .map(|w| (*w - *p).length())
+                .fold(f32::INFINITY, f32::min);
+            assert!(
+                nearest >= d,
+                "fluid particle at {p:?} {nearest} m from a wall particle"
+            );
+        }
+        let removed = s.fluid_particle_count() - sim.fluid_count();
+        // At d = 5 cm the box alone covers 8 x 12 sites of the 40 x 20 lattice; the 0.58 m
+        // wall a band about three sites wide.
+        assert!(removed > 8 * 12, "only {removed} sites left empty");
+        assert!(removed < 8 * 12 + 80, "{removed} sites left empty");
+    }
+
+    #[test]
     fn invalid_parameters_are_refused_and_valid_ones_taken() {
         let mut sim = sim();
         let mut solver = sim.scene().solver.clone();

@@ -301,7 +301,9 @@ impl Scene {
         ((length / self.spacing()) + 1.0e-6).floor().max(0.0) as usize
     }
 
-    /// Number of fluid particles the scene's blocks produce.
+    /// Number of lattice sites in the scene's fluid blocks: the number of fluid particles
+    /// without obstacles, an upper bound with them (sites an obstacle covers stay empty; see
+    /// `Simulation::new`).
     pub fn fluid_particle_count(&self) -> usize {
         self.fluid
             .iter()

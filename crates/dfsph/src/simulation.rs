@@ -157,24 +157,10 @@ impl Simulation {
             pointer: None,
             shake_drive: 0.0,
         };
-        for block in &scene.fluid {
-            let nx = scene.lattice_count(block.max[0] - block.min[0]);
-            let ny = scene.lattice_count(block.max[1] - block.min[1]);
-            let v = to_vec2(block.velocity);
-            for j in 0..ny {
-                for i in 0..nx {
-                    // Lattice sites in f64, so long blocks stay exactly periodic.
-                    let x = block.min[0] + (i as f64 + 0.5) * scene.spacing();
-                    let y = block.min[1] + (j as f64 + 0.5) * scene.spacing();
-                    let id = sim.next_id;
-                    sim.next_id += 1;
-                    sim.fluid.push(Vec2::new(x as f32, y as f32), v, id);
-                }
-            }
-        }
         let mut samples = BoundarySamples::default();
         samples.add_tank(to_vec2(scene.tank.min), to_vec2(scene.tank.max), d, 0);
         sim.bodies.push(Body::default());
+        let tank_samples = samples.positions.len();
         for obstacle in &scene.obstacles {
             let body = sim.bodies.len() as BodyId;
             sim.bodies.push(Body::default());
@@ -185,6 +171,41 @@ impl Simulation {
                 Obstacle::Polyline { points } => {
                     let pts: Vec<Vec2> = points.iter().map(|&p| to_vec2(p)).collect();
                     samples.add_polyline(&pts, d, body)
+                }
+            }
+        }
+        // Lattice sites the obstacles cover stay empty: inside a solid box, or closer than one
+        // spacing to an obstacle's wall particles (the rule for walls drawn over water, see
+        // `add_wall`). Fluid there would start crushed into the wall.
+        let mut obstacle_grid = Grid::new(d);
+        obstacle_grid.build(&samples.positions[tank_samples..]);
+        let covered = |p: Vec2| {
+            let inside_box = scene.obstacles.iter().any(|o| match o {
+                Obstacle::Rect { min, max } => {
+                    p.cmpge(to_vec2(*min)).all() && p.cmple(to_vec2(*max)).all()
+                }
+                Obstacle::Polyline { .. } => false,
+            });
+            let mut near_wall = false;
+            obstacle_grid.for_each_near(p, |_, _| near_wall = true);
+            inside_box || near_wall
+        };
+        for block in &scene.fluid {
+            let nx = scene.lattice_count(block.max[0] - block.min[0]);
+            let ny = scene.lattice_count(block.max[1] - block.min[1]);
+            let v = to_vec2(block.velocity);
+            for j in 0..ny {
+                for i in 0..nx {
+                    // Lattice sites in f64, so long blocks stay exactly periodic.
+                    let x = block.min[0] + (i as f64 + 0.5) * scene.spacing();
+                    let y = block.min[1] + (j as f64 + 0.5) * scene.spacing();
+                    let p = Vec2::new(x as f32, y as f32);
+                    if covered(p) {
+                        continue;
+                    }
+                    let id = sim.next_id;
+                    sim.next_id += 1;
+                    sim.fluid.push(p, v, id);
                 }
             }
         }
