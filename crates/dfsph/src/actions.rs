@@ -311,6 +311,14 @@ mod tests {
     use super::*;
     use crate::scene;
 
+    /// A built-in scene at particle radius `radius` with a rectangular obstacle added.
+    fn with_box(name: &str, radius: f64, min: [f64; 2], max: [f64; 2]) -> scene::Scene {
+        let mut s = scene::builtin(name).unwrap();
+        s.particle_radius = radius;
+        s.obstacles.push(scene::Obstacle::Rect { min, max });
+        s
+    }
+
     fn sim() -> Simulation {
         let mut s = scene::builtin("dam-break").unwrap();
         s.particle_radius = 0.05;
@@ -344,12 +352,7 @@ mod tests {
 
     #[test]
     fn obstacles_and_drawn_walls_move_with_the_shaken_tank() {
-        let mut s = scene::builtin("dam-break").unwrap();
-        s.particle_radius = 0.05;
-        s.obstacles.push(scene::Obstacle::Rect {
-            min: [2.0, 0.0],
-            max: [2.2, 0.4],
-        });
+        let s = with_box("dam-break", 0.05, [2.0, 0.0], [2.2, 0.4]);
         let mut sim = Simulation::new(&s).unwrap();
         let start: Vec<Vec2> = sim.boundary_positions().to_vec();
         let start_bodies: Vec<BodyId> = sim.boundary_bodies().to_vec();
@@ -407,13 +410,8 @@ mod tests {
 
     #[test]
     fn fluid_is_not_placed_inside_or_against_obstacles() {
-        let mut s = scene::builtin("hydrostatic").unwrap();
-        s.particle_radius = 0.025;
         // A box standing in the water and a wall across it.
-        s.obstacles.push(scene::Obstacle::Rect {
-            min: [0.8, 0.0],
-            max: [1.2, 0.6],
-        });
+        let mut s = with_box("hydrostatic", 0.025, [0.8, 0.0], [1.2, 0.6]);
         s.obstacles.push(scene::Obstacle::Polyline {
             points: vec![[0.1, 0.5], [0.6, 0.2]],
         });

@@ -409,6 +409,24 @@ mod tests {
         }
     }
 
+    /// `grid`'s lists for `queries` (another point set) against brute force; returns the
+    /// number of pairs.
+    fn check_cross(grid: &Grid, queries: &[Vec2], radius: f32) -> usize {
+        let points = grid.sorted_points();
+        let mut lists = NeighborLists::default();
+        grid.neighbor_lists(queries, false, &mut lists);
+        for (i, &p) in queries.iter().enumerate() {
+            let mut got = lists.of(i).to_vec();
+            got.sort_unstable();
+            let want: Vec<u32> = (0..points.len())
+                .filter(|&j| (p - points[j]).length_squared() < radius * radius)
+                .map(|j| j as u32)
+                .collect();
+            assert_eq!(got, want, "query {i} at {p:?}");
+        }
+        lists.pair_count()
+    }
+
     #[test]
     fn points_on_cell_borders() {
         // A lattice whose spacing is exactly half the radius puts points on every cell edge
@@ -473,18 +491,7 @@ mod tests {
             .collect();
         let mut grid = Grid::new(0.05);
         grid.build(&walls);
-        let sorted_walls = grid.sorted_points().to_vec();
-        let mut lists = NeighborLists::default();
-        grid.neighbor_lists(&fluid, false, &mut lists);
-        for (i, &p) in fluid.iter().enumerate() {
-            let mut got = lists.of(i).to_vec();
-            got.sort_unstable();
-            let want: Vec<u32> = (0..sorted_walls.len())
-                .filter(|&j| (p - sorted_walls[j]).length_squared() < 0.05 * 0.05)
-                .map(|j| j as u32)
-                .collect();
-            assert_eq!(got, want);
-        }
+        check_cross(&grid, &fluid, 0.05);
     }
 
     #[test]
@@ -515,7 +522,6 @@ mod tests {
         grid.set_dense_cells_floor(1 << 18);
         grid.build(&walls);
         assert!(!grid.hashed, "the floor keeps it dense");
-        let sorted_walls = grid.sorted_points().to_vec();
         // Queries sorted along x then y (runs in one cell, as the fluid arrives), then
         // points on cell borders, outside the tank and very far away.
         let mut queries: Vec<Vec2> = (0..4000)
@@ -529,18 +535,7 @@ mod tests {
             Vec2::new(1.0e6, -1.0e6),
             Vec2::new(-3.0e4, 2.0),
         ]);
-        let mut lists = NeighborLists::default();
-        grid.neighbor_lists(&queries, false, &mut lists);
-        for (i, &p) in queries.iter().enumerate() {
-            let mut got = lists.of(i).to_vec();
-            got.sort_unstable();
-            let want: Vec<u32> = (0..sorted_walls.len())
-                .filter(|&j| (p - sorted_walls[j]).length_squared() < radius * radius)
-                .map(|j| j as u32)
-                .collect();
-            assert_eq!(got, want, "query {i} at {p:?}");
-        }
-        assert!(lists.pair_count() > 0);
+        assert!(check_cross(&grid, &queries, radius) > 0);
     }
 
     #[test]
