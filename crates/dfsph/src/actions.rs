@@ -280,11 +280,7 @@ impl Simulation {
         let mut grid = Grid::new(self.spacing);
         grid.build(&samples.positions);
         let pos = self.fluid.position.clone();
-        let removed = self.fluid.retain(|i| {
-            let mut inside = false;
-            grid.for_each_near(pos[i], |_, _| inside = true);
-            !inside
-        });
+        let removed = self.fluid.retain(|i| !grid.any_near(pos[i]));
         self.add_boundary_samples(samples);
         (removed, added)
     }

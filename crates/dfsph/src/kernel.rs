@@ -38,7 +38,12 @@ impl CubicSpline {
     /// `W(r)` in 1/m².
     #[inline]
     pub fn w(&self, r: f32) -> f32 {
-        let q = r * self.inv_h;
+        self.w_of_q(r * self.inv_h)
+    }
+
+    /// `W` at `q = r/h`.
+    #[inline]
+    fn w_of_q(&self, q: f32) -> f32 {
         if q <= 0.5 {
             let q2 = q * q;
             self.k * (6.0 * q2 * q - 6.0 * q2 + 1.0)
@@ -47,6 +52,17 @@ impl CubicSpline {
             2.0 * self.k * a * a * a
         } else {
             0.0
+        }
+    }
+
+    /// `dW/dq` for `0 ≤ q < 1`.
+    #[inline]
+    fn dw_dq(&self, q: f32) -> f32 {
+        if q <= 0.5 {
+            self.l * q * (3.0 * q - 2.0)
+        } else {
+            let a = 1.0 - q;
+            -self.l * a * a
         }
     }
 
@@ -65,13 +81,7 @@ impl CubicSpline {
             return Vec2::ZERO;
         }
         // dW/dq · (1/h) · r/|r|
-        let dwdq = if q <= 0.5 {
-            self.l * q * (3.0 * q - 2.0)
-        } else {
-            let a = 1.0 - q;
-            -self.l * a * a
-        };
-        r * (dwdq * self.inv_h / rl)
+        r * (self.dw_dq(q) * self.inv_h / rl)
     }
 
     /// `W` and `∇W` together, sharing the square root.
@@ -80,23 +90,10 @@ impl CubicSpline {
         // One square root for both: this is the per-pair work of the density pass.
         let rl = r.length();
         let q = rl * self.inv_h;
-        if q >= 1.0 {
-            return (0.0, Vec2::ZERO);
+        if rl <= 1.0e-9 || q >= 1.0 {
+            return (self.w_of_q(q), Vec2::ZERO);
         }
-        let (w, dwdq) = if q <= 0.5 {
-            let q2 = q * q;
-            (
-                self.k * (6.0 * q2 * q - 6.0 * q2 + 1.0),
-                self.l * q * (3.0 * q - 2.0),
-            )
-        } else {
-            let a = 1.0 - q;
-            (2.0 * self.k * a * a * a, -self.l * a * a)
-        };
-        if rl <= 1.0e-9 {
-            return (w, Vec2::ZERO);
-        }
-        (w, r * (dwdq * self.inv_h / rl))
+        (self.w_of_q(q), r * (self.dw_dq(q) * self.inv_h / rl))
     }
 }
 

@@ -219,6 +219,22 @@ impl Grid {
         }
         let c = self.cell_of(p);
         let r2 = self.radius * self.radius;
+        let mut visit = |start: u32, end: u32| {
+            for j in start..end {
+                let r = p - self.sorted[j as usize];
+                if r.length_squared() < r2 {
+                    f(j, r);
+                }
+            }
+        };
+        if !self.hashed {
+            let mut block = [(0u32, 0u32); 3];
+            let len = self.dense_block(c, &mut block);
+            for &(start, end) in &block[..len] {
+                visit(start, end);
+            }
+            return;
+        }
         let mut seen = [u32::MAX; 9];
         let mut nseen = 0;
         for dy in -1..=1 {
@@ -228,24 +244,25 @@ impl Grid {
                 else {
                     continue;
                 };
-                if self.hashed {
-                    // Two of the nine cells may share a hash bucket: scan it once.
-                    if seen[..nseen].contains(&key) {
-                        continue;
-                    }
-                    seen[nseen] = key;
-                    nseen += 1;
+                // Two of the nine cells may share a hash bucket: scan it once.
+                if seen[..nseen].contains(&key) {
+                    continue;
                 }
-                let start = self.cell_start[key as usize] as usize;
-                let end = self.cell_start[key as usize + 1] as usize;
-                for (j, &xj) in self.sorted[start..end].iter().enumerate() {
-                    let r = p - xj;
-                    if r.length_squared() < r2 {
-                        f((start + j) as u32, r);
-                    }
-                }
+                seen[nseen] = key;
+                nseen += 1;
+                visit(
+                    self.cell_start[key as usize],
+                    self.cell_start[key as usize + 1],
+                );
             }
         }
+    }
+
+    /// Whether any of this grid's points lies within the support of `p`.
+    pub fn any_near(&self, p: Vec2) -> bool {
+        let mut found = false;
+        self.for_each_near(p, |_, _| found = true);
+        found
     }
 
     /// The points of the (up to) 3 x 3 cells around cell `c` of a dense grid, as one range

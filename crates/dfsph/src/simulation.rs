@@ -186,9 +186,7 @@ impl Simulation {
                 }
                 Obstacle::Polyline { .. } => false,
             });
-            let mut near_wall = false;
-            obstacle_grid.for_each_near(p, |_, _| near_wall = true);
-            inside_box || near_wall
+            inside_box || obstacle_grid.any_near(p)
         };
         for block in &scene.fluid {
             let nx = scene.lattice_count(block.max[0] - block.min[0]);

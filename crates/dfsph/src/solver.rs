@@ -68,9 +68,8 @@ pub fn density_and_factor(
         .zip(split_by_chunk(fluid_grad, fluid_lists))
         .zip(split_by_chunk(boundary_grad, boundary_lists))
         .enumerate()
-        .for_each(|(c, (((s, a), fg), bg))| {
+        .for_each(|(c, (((s, a), mut fg), mut bg))| {
             let base = c * PAIR_CHUNK;
-            let (mut fg, mut bg) = (fg, bg);
             for (k, (s, a)) in s.iter_mut().zip(a.iter_mut()).enumerate() {
                 let i = base + k;
                 let xi = pos[i];
