@@ -32,19 +32,31 @@
 //! the continuum would (the single-sided Akinci wall term needs it to hold them up): an
 //! interpolation of those pressures onto the face reads up to 60 % high.
 //!
-//! **Pressure** at any other point `x`: Shepard-normalised SPH interpolation of the fluid particles'
-//! pressures within the kernel support h, with the hydrostatic correction of Adami, Hu &
-//! Adams (2012, J. Comput. Phys. 231:7057, eq. 27) that boundary-particle methods use to
-//! extrapolate pressure onto a wall:
+//! **Pressure** at any other point `x`: the mechanical pressure, that is the force the fluid
+//! transmits across lines near `x` per unit length, as a transducer membrane would feel it.
+//! It is the virial (Irving & Kirkwood 1950; Hardy 1982) of the pressure forces the solver
+//! applies between particle pairs, localised by the kernel W with support h as the window:
 //!
 //! ```text
-//! p(x) = Σ_j [p_j + ρ_j · g·(x − x_j)] · V_j W(x − x_j)  /  Σ_j V_j W(x − x_j)
+//! f_ij = −m V0 (q_i + q_j) ∇W_ij,   f_ib = −m Ψ_b q_i ∇W_ib     (q = p/ρ0 + κᵛ/Δt, as above)
+//! p(x) = ½ Σ_pairs (f_ij · x_ij) ∫₀¹ W(x − x_j − s·x_ij) ds / φ(x)  +  ρ0 g·(x − c(x))
 //! ```
 //!
-//! (g the current gravity vector, V_j = m/ρ_j). The correction makes the reading exact for a
-//! hydrostatic field even where the kernel is cut off by the free surface, where a plain
-//! Shepard average would report the pressure at the neighbours' mean depth instead. A probe
-//! with no fluid particle within h is **dry** and reads 0 (a dry wall sensor too).
+//! over fluid–fluid and fluid–wall pairs, φ(x) = Σ_j V0 W(x − x_j) the fluid fraction of the
+//! window and c(x) its fluid's centroid (g the current gravity vector). Dividing by φ averages
+//! over the part of the window that holds fluid, and the last term carries that average from
+//! the fluid's centroid to `x`, so that a probe near the free surface still reads the
+//! hydrostatic pressure at its own height. The velocity-fluctuation (kinetic) part of the
+//! virial is left out: in SPH it is numerical noise, not a pressure.
+//!
+//! Why not interpolate the particles' pressures: the pressure solve determines them only up to
+//! modes that exert no force, such as rows of particles alternately above and below the mean
+//! on a lattice (the SPH pressure operator cannot see them, so nothing removes them). In a
+//! settled tank such a pattern sits on a few rows at ±15 % of ρ0·g·H, and a Shepard
+//! interpolation centred on a row reads 36 % of the pattern's amplitude. The pair sums
+//! q_i + q_j across rows do not see it at all, and the virial, which sees it only through the
+//! pairs within a row, reads 12 % of it (the test below). A probe with no fluid particle within
+//! h is **dry** and reads 0 (a dry wall sensor too).
 //!
 //! **Water level** at `x`: the fluid fraction `φ(y) = Σ_j V0 W((x, y) − x_j)` (V0 = m/ρ0, the
 //! volume of a particle at rest; φ ≈ 1 inside the water, ≈ 0.5 on a flat free surface, 0 in
@@ -212,6 +224,29 @@ pub fn tank_face_normal(scene: &Scene, at: Point) -> Option<Vec2> {
     }
 }
 
+/// Pressure over ρ0, m²/s², with which each fluid particle pushes its neighbours and the
+/// walls in the current step, exactly as the solver applies it (`apply_pressure`): the density
+/// solve's p/ρ0 plus, for DFSPH, the divergence solve's κᵛ/Δt (its impulse spread over the
+/// step; it carries much of an impact). WCSPH applies p/ρ0 divided by (ρ/ρ0)².
+fn pressure_pushes(sim: &Simulation) -> impl Fn(usize) -> f32 + '_ {
+    let solver = &sim.scene().solver;
+    let dt = sim.stats().dt as f32;
+    let use_divergence =
+        solver.method == crate::scene::Method::Dfsph && solver.divergence_solve && dt > 0.0;
+    let wcsph = solver.method == crate::scene::Method::Wcsph;
+    move |i: usize| -> f32 {
+        let p = sim.pressures_over_rho0()[i];
+        let s = sim.density_ratios()[i].max(1.0e-3);
+        let p = if wcsph { p / (s * s) } else { p };
+        let kv = if use_divergence {
+            sim.divergence_stiffnesses()[i] / dt
+        } else {
+            0.0
+        };
+        p + kv
+    }
+}
+
 /// Normal pressure on the tank wall at the world point `x` of a face with outward (into the
 /// wall) normal `normal`, Pa: the fluid's force on the wall's boundary particles per unit
 /// length (see the module documentation). 0 when no fluid touches the wall there.
@@ -225,23 +260,7 @@ pub fn wall_pressure_at(sim: &Simulation, x: Vec2, normal: Vec2) -> f64 {
     let length = ((hi - lo) * tangent).abs().max_element();
     let a = length / (length / d).round().max(1.0);
     let mass = sim.particle_mass() as f64;
-    let solver = &sim.scene().solver;
-    let dt = sim.stats().dt as f32;
-    let use_divergence =
-        solver.method == crate::scene::Method::Dfsph && solver.divergence_solve && dt > 0.0;
-    let wcsph = solver.method == crate::scene::Method::Wcsph;
-    // Pressure over ρ0 that each fluid particle pushes the wall with, as the solver applies it.
-    let push = |i: usize| -> f32 {
-        let p = sim.pressures_over_rho0()[i];
-        let s = sim.density_ratios()[i].max(1.0e-3);
-        let p = if wcsph { p / (s * s) } else { p };
-        let kv = if use_divergence {
-            sim.divergence_stiffnesses()[i] / dt
-        } else {
-            0.0
-        };
-        p + kv
-    };
+    let push = pressure_pushes(sim);
     // The wall's particles under the sensor: tank body, behind the face, within a of the
     // sensor along it.
     let walls: Vec<(Vec2, f32, f32)> = sim
@@ -280,38 +299,83 @@ pub fn wall_pressure_at(sim: &Simulation, x: Vec2, normal: Vec2) -> f64 {
     reading
 }
 
-/// Pressure at the world point `x`, Pa: Shepard interpolation with the hydrostatic correction
-/// (see the module documentation). `None` when no fluid particle lies within the kernel
-/// support (dry).
+/// Points along a bond at which the window weight is sampled (midpoint rule): the cubic
+/// spline is smooth enough that 8 points integrate it to well under 1 % on bonds up to h long.
+const BOND_SAMPLES: usize = 8;
+
+/// Pressure at the world point `x`, Pa: the mechanical (virial) pressure of the pair forces
+/// inside a window of radius h, with the hydrostatic correction (see the module
+/// documentation). `None` when no fluid particle lies within h (dry).
 pub fn pressure_at(sim: &Simulation, x: Vec2) -> Option<f64> {
     let kernel = sim.kernel();
     let h = kernel.support();
     let h2 = h * h;
     let rho0 = sim.rest_density() as f64;
-    let mass = sim.particle_mass() as f64;
-    let g = sim.gravity();
-    let pressures = sim.pressures_over_rho0();
-    let ratios = sim.density_ratios();
-    let (mut num, mut den) = (0.0f64, 0.0f64);
-    let mut wet = false;
-    for (j, &xj) in sim.positions().iter().enumerate() {
-        let r = x - xj;
-        let r2 = r.length_squared();
-        if r2 >= h2 {
-            continue;
+    let mass = sim.particle_mass();
+    let v0 = mass / sim.rest_density();
+    let push = pressure_pushes(sim);
+    // A bond reaches the window when one of its ends is within h (window) + h (bond length).
+    let reach2 = 4.0 * h2;
+    let fluid: Vec<(Vec2, f32)> = sim
+        .positions()
+        .iter()
+        .enumerate()
+        .filter(|(_, &xi)| (xi - x).length_squared() < reach2)
+        .map(|(i, &xi)| (xi, push(i)))
+        .collect();
+    // Fluid fraction of the window and the centroid of its fluid.
+    let (mut phi, mut centroid) = (0.0f64, glam::DVec2::ZERO);
+    for &(xi, _) in &fluid {
+        let r2 = (x - xi).length_squared();
+        if r2 < h2 {
+            let w = (v0 * kernel.w(r2.sqrt())) as f64;
+            phi += w;
+            centroid += w * xi.as_dvec2();
         }
-        wet = true;
-        let w = kernel.w(r2.sqrt()) as f64;
-        let rho_j = rho0 * (ratios.get(j).copied().unwrap_or(1.0) as f64).max(1.0e-3);
-        let v = mass / rho_j;
-        let p_j = pressures.get(j).copied().unwrap_or(0.0) as f64 * rho0;
-        num += (p_j + rho_j * g.dot(r) as f64) * v * w;
-        den += v * w;
     }
-    if !wet {
+    if phi <= 0.0 {
         return None;
     }
-    Some(if den > 0.0 { num / den } else { 0.0 })
+    centroid /= phi;
+    // Share of the bond from `a` to `b` that lies in the window, weighted by W(x − ·).
+    let bond_weight = |a: Vec2, b: Vec2| -> f64 {
+        let ab = b - a;
+        (0..BOND_SAMPLES)
+            .map(|k| {
+                let s = (k as f32 + 0.5) / BOND_SAMPLES as f32;
+                kernel.w((x - (a + s * ab)).length()) as f64
+            })
+            .sum::<f64>()
+            / BOND_SAMPLES as f64
+    };
+    // Virial: Σ over pairs of (force on i from j)·(x_i − x_j). The solver's pair force is
+    // f_ij = −m V0 (q_i + q_j) ∇W_ij (q = push), and against a wall particle b it is
+    // f_ib = −m Ψ_b q_i ∇W_ib.
+    let mut virial = 0.0f64;
+    for (k, &(xi, qi)) in fluid.iter().enumerate() {
+        for &(xj, qj) in &fluid[k + 1..] {
+            let r = xi - xj;
+            if r.length_squared() < h2 && qi + qj != 0.0 {
+                let f_dot_r = -mass * v0 * (qi + qj) * kernel.grad_w(r).dot(r);
+                virial += f_dot_r as f64 * bond_weight(xj, xi);
+            }
+        }
+    }
+    for (&xb, &vb) in sim.boundary_positions().iter().zip(sim.boundary_volumes()) {
+        if (xb - x).length_squared() >= reach2 {
+            continue;
+        }
+        for &(xi, qi) in &fluid {
+            let r = xi - xb;
+            if r.length_squared() < h2 && qi != 0.0 {
+                let f_dot_r = -mass * vb * qi * kernel.grad_w(r).dot(r);
+                virial += f_dot_r as f64 * bond_weight(xb, xi);
+            }
+        }
+    }
+    // In two dimensions p = tr(σ)/2 = virial / (2·area); the window's fluid area is φ.
+    let g = sim.gravity().as_dvec2();
+    Some(0.5 * virial / phi + rho0 * g.dot(x.as_dvec2() - centroid))
 }
 
 /// Fluid fraction `Σ_j V0 W(x − x_j)` at the world point `x` (≈ 1 inside the water, ≈ 0.5
@@ -547,5 +611,47 @@ mod tests {
                 "{name}: {mean:.1} Pa, expected {expected:.1} Pa"
             );
         }
+    }
+
+    #[test]
+    fn pressure_probe_reads_forces_and_barely_sees_a_force_free_row_pattern() {
+        let r = 0.02f32;
+        let d = 2.0 * r;
+        let rho_g_h = 1000.0 * 9.81f32;
+        let mut sim = Simulation::new(&hydrostatic(r as f64, vec![])).unwrap();
+        // Hydrostatic pressures on the initial lattice (rows at y = r + k·d), plus rows
+        // alternately +δ and −δ: every interior particle has the same rows above and below it,
+        // so the pattern exerts no net force on any of them.
+        let mut set = |delta: f32| {
+            for i in 0..sim.fluid.len() {
+                let y = sim.fluid.position[i].y;
+                let row = ((y - r) / d).round() as i32;
+                let sign = if row % 2 == 0 { 1.0 } else { -1.0 };
+                sim.fluid.pressure_over_rho0[i] = (rho_g_h * (1.0 - y) + sign * delta) / 1000.0;
+            }
+            let mid = pressure_at(&sim, Vec2::new(1.0, 0.5)).unwrap();
+            let near_surface = pressure_at(&sim, Vec2::new(1.0, 0.98)).unwrap();
+            (mid, near_surface)
+        };
+        let (mid, near_surface) = set(0.0);
+        // The pressure at the probe's own height, also 2 cm under the surface where half the
+        // window is air.
+        assert!(
+            (mid - 0.5 * rho_g_h as f64).abs() < 0.02 * rho_g_h as f64,
+            "{mid}"
+        );
+        assert!(
+            (near_surface - 0.02 * rho_g_h as f64).abs() < 0.02 * rho_g_h as f64,
+            "{near_surface}"
+        );
+        // y = 0.5 is a row centre (r + 12·d): an interpolation of the particles' pressures
+        // there moves by about a third of δ.
+        let delta = 0.1 * rho_g_h;
+        let (mid_pattern, _) = set(delta);
+        let shift = (mid_pattern - mid).abs();
+        assert!(
+            shift < 0.2 * delta as f64,
+            "moved {shift:.1} Pa for δ = {delta} Pa"
+        );
     }
 }
