@@ -97,6 +97,10 @@ pub struct RowArgs {
     /// salva2d's fixed Δt, s.
     #[arg(long, value_parser = positive)]
     pub salva_dt: Option<f64>,
+    /// Process id of the `dfsph2d bench` that started this row: the row ends if that process
+    /// is gone before the row has asked to be killed with it.
+    #[arg(long)]
+    pub parent: Option<u32>,
 }
 
 /// A code under test.
@@ -380,7 +384,8 @@ fn run_child(
     cmd.args(["bench-row", "--code", code.name(), "--case", size.name()])
         .args(["--spacing", &size.spacing().to_string()])
         .args(["--until", &until.to_string()])
-        .args(["--salva-dt", &salva_dt.to_string()]);
+        .args(["--salva-dt", &salva_dt.to_string()])
+        .args(["--parent", &std::process::id().to_string()]);
     if let Some(t) = threads {
         cmd.args(["--threads", &t.to_string()]);
     }

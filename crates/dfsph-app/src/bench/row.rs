@@ -17,7 +17,7 @@ pub const FRONT_CHECK_TIME: f64 = 0.4;
 
 /// Run one row and print it as one JSON line on stdout.
 pub fn run_row(args: RowArgs) -> Result<(), String> {
-    exit_with_parent();
+    exit_with_parent(args.parent);
     if let Some(n) = args.threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(n as usize)
@@ -240,22 +240,24 @@ fn compiled_simd() -> String {
     .into()
 }
 
-/// Make this row process end when the `dfsph2d bench` that started it does. Killing the
-/// parent (Ctrl-C in a terminal reaches both, but `kill PID` or a closed CI job does not) left
-/// the row running, taking the CPU from whatever was measured next. On Linux the kernel
-/// sends SIGKILL to the row when its parent dies; the row writes no files, so nothing is left
-/// half-written.
-fn exit_with_parent() {
+/// Make this row process end when the `dfsph2d bench` that started it (process `parent`)
+/// does. Killing the parent (Ctrl-C in a terminal reaches both, but `kill PID` or a closed CI
+/// job does not) left the row running, taking the CPU from whatever was measured next. On
+/// Linux the kernel sends SIGKILL to the row when its parent dies; the row writes no files, so
+/// nothing is left half-written. A parent that died before the request was made is caught by
+/// comparing with the pid the parent passed: under load a row can take a while to get here.
+fn exit_with_parent(parent: Option<u32>) {
     #[cfg(target_os = "linux")]
     {
-        let parent = std::os::unix::process::parent_id();
+        let parent = parent.unwrap_or_else(std::os::unix::process::parent_id);
         // SAFETY: prctl with PR_SET_PDEATHSIG only sets a flag on this process.
         unsafe {
             libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL);
         }
-        // The parent may have died between the spawn and the prctl call.
         if std::os::unix::process::parent_id() != parent {
             std::process::exit(1);
         }
     }
+    #[cfg(not(target_os = "linux"))]
+    let _ = parent;
 }
