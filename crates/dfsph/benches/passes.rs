@@ -21,7 +21,7 @@ use dfsph::neighbors::{Grid, NeighborLists};
 use dfsph::particles::{BoundaryParticles, FluidParticles};
 use dfsph::scene;
 use dfsph::simulation::lattice_kernel_sum;
-use dfsph::solver::{self, Neighborhood, SolveLimits, SolverScratch};
+use dfsph::solver::{self, Neighborhood, PairCache, SolveLimits, SolverScratch};
 use dfsph::{Simulation, Vec2};
 
 /// Everything the passes read, rebuilt through the public API from a running simulation.
@@ -34,8 +34,7 @@ struct State {
     boundary_grid: Grid,
     fluid_lists: NeighborLists,
     boundary_lists: NeighborLists,
-    fluid_grad: Vec<Vec2>,
-    boundary_grad: Vec<Vec2>,
+    pair_cache: PairCache,
     /// The factor cap the simulation uses.
     max_factor: f32,
 }
@@ -55,8 +54,7 @@ impl State {
             &self.boundary,
             &self.fluid_lists,
             &self.boundary_lists,
-            &mut self.fluid_grad,
-            &mut self.boundary_grad,
+            &mut self.pair_cache,
             self.max_factor,
         );
     }
@@ -114,8 +112,7 @@ fn state(d: f64, steps: usize) -> State {
         boundary_grid,
         fluid_lists,
         boundary_lists,
-        fluid_grad: Vec::new(),
-        boundary_grad: Vec::new(),
+        pair_cache: PairCache::default(),
         max_factor: solver::MAX_FACTOR_RATIO * solver::lattice_factor(&kernel, d, volume),
     };
     s.density_and_factor();
@@ -163,12 +160,7 @@ fn passes(c: &mut Criterion) {
         });
         g.finish();
 
-        let nb = Neighborhood {
-            fluid: &s.fluid_lists,
-            fluid_grad: &s.fluid_grad,
-            boundary: &s.boundary_lists,
-            boundary_grad: &s.boundary_grad,
-        };
+        let nb = Neighborhood::new(&s.fluid_lists, &s.boundary_lists, &s.pair_cache);
         let dt = 1.0e-3f32;
         // A stiffness field like a solve's: positive where compressed.
         let kappa: Vec<f32> = s
@@ -182,7 +174,7 @@ fn passes(c: &mut Criterion) {
         g.throughput(Throughput::Elements(n));
         let mut vel = s.fluid.velocity.clone();
         g.bench_function(BenchmarkId::new("apply", name), |b| {
-            b.iter(|| solver::apply_pressure(s.volume, &kappa, &mut vel, &s.boundary, &nb))
+            b.iter(|| solver::apply_pressure(s.volume, &kappa, &mut vel, &nb))
         });
         for (label, iterations) in [("residual", 0), ("iteration_plus_residual", 1)] {
             let limits = SolveLimits {
@@ -202,7 +194,6 @@ fn passes(c: &mut Criterion) {
                             solver::max_compression_correction(dt, s.spacing()),
                             false,
                             fluid,
-                            &s.boundary,
                             &nb,
                             limits,
                             &mut scratch,

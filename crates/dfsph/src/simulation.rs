@@ -11,7 +11,7 @@ use crate::kernel::CubicSpline;
 use crate::neighbors::{Grid, NeighborLists};
 use crate::particles::{BoundaryParticles, FluidParticles, Scratch};
 use crate::scene::{Method, Obstacle, Scene, SceneError};
-use crate::solver::{self, Neighborhood, SolveLimits, SolveReport, SolverScratch};
+use crate::solver::{self, Neighborhood, PairCache, SolveLimits, SolveReport, SolverScratch};
 
 /// Diagnostics of one step.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
@@ -79,8 +79,7 @@ pub struct Simulation {
     boundary_grid: Grid,
     fluid_lists: NeighborLists,
     boundary_lists: NeighborLists,
-    fluid_grad: Vec<Vec2>,
-    boundary_grad: Vec<Vec2>,
+    pair_cache: PairCache,
     scratch: Scratch,
     solver_scratch: SolverScratch,
     pub(crate) time: f64,
@@ -139,8 +138,7 @@ impl Simulation {
             boundary_grid: Grid::new(kernel.support()),
             fluid_lists: NeighborLists::default(),
             boundary_lists: NeighborLists::default(),
-            fluid_grad: Vec::new(),
-            boundary_grad: Vec::new(),
+            pair_cache: PairCache::default(),
             scratch: Scratch::default(),
             solver_scratch: SolverScratch::default(),
             time: 0.0,
@@ -267,8 +265,7 @@ impl Simulation {
             &self.boundary,
             &self.fluid_lists,
             &self.boundary_lists,
-            &mut self.fluid_grad,
-            &mut self.boundary_grad,
+            &mut self.pair_cache,
             self.max_factor,
         );
     }
@@ -294,12 +291,7 @@ impl Simulation {
             max_error_pct: f64::INFINITY,
             ..density_limits
         };
-        let nb = Neighborhood {
-            fluid: &self.fluid_lists,
-            fluid_grad: &self.fluid_grad,
-            boundary: &self.boundary_lists,
-            boundary_grad: &self.boundary_grad,
-        };
+        let nb = Neighborhood::new(&self.fluid_lists, &self.boundary_lists, &self.pair_cache);
 
         let mut div_report = SolveReport::default();
         if method == Method::Dfsph && divergence {
@@ -308,7 +300,6 @@ impl Simulation {
                 self.last_dt,
                 warm,
                 &mut self.fluid,
-                &self.boundary,
                 &nb,
                 divergence_limits,
                 &mut self.solver_scratch,
@@ -354,7 +345,6 @@ impl Simulation {
                     solver::max_compression_correction(dt, self.spacing),
                     warm,
                     &mut self.fluid,
-                    &self.boundary,
                     &nb,
                     density_limits,
                     &mut self.solver_scratch,
@@ -366,7 +356,6 @@ impl Simulation {
                     p.wcsph_stiffness as f32,
                     p.wcsph_exponent as f32,
                     &mut self.fluid,
-                    &self.boundary,
                     &nb,
                     &mut self.solver_scratch,
                 ),

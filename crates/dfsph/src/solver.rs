@@ -24,6 +24,21 @@ use crate::kernel::CubicSpline;
 use crate::neighbors::NeighborLists;
 use crate::particles::{BoundaryParticles, FluidParticles};
 
+/// What [`density_and_factor`] caches for the rest of a step, valid while positions do not
+/// change.
+#[derive(Clone, Debug, Default)]
+pub struct PairCache {
+    /// `∇W_ij` per fluid–fluid pair, in list order.
+    pub fluid_grad: Vec<Vec2>,
+    /// `∇W_ib` per fluid–boundary pair, in list order.
+    pub boundary_grad: Vec<Vec2>,
+    /// Per particle, `Σ_j V_j ∇W_ij + Σ_b Ψ_b ∇W_ib`: what a uniform κ or velocity sees.
+    pub grad_sum: Vec<Vec2>,
+    /// Per particle, `Σ_b Ψ_b v_b·∇W_ib`: the walls' share of the density rate (walls keep
+    /// their velocity for the whole step).
+    pub wall_flux: Vec<f32>,
+}
+
 /// Read-only view of one step's neighbourhoods: lists and the kernel gradients cached for
 /// every pair, valid while positions do not change.
 pub struct Neighborhood<'a> {
@@ -33,6 +48,27 @@ pub struct Neighborhood<'a> {
     /// Fluid–boundary lists and `∇W_ib` per pair.
     pub boundary: &'a NeighborLists,
     pub boundary_grad: &'a [Vec2],
+    /// [`PairCache::grad_sum`].
+    pub grad_sum: &'a [Vec2],
+    /// [`PairCache::wall_flux`].
+    pub wall_flux: &'a [f32],
+}
+
+impl<'a> Neighborhood<'a> {
+    pub fn new(
+        fluid: &'a NeighborLists,
+        boundary: &'a NeighborLists,
+        cache: &'a PairCache,
+    ) -> Self {
+        Self {
+            fluid,
+            fluid_grad: &cache.fluid_grad,
+            boundary,
+            boundary_grad: &cache.boundary_grad,
+            grad_sum: &cache.grad_sum,
+            wall_flux: &cache.wall_flux,
+        }
+    }
 }
 
 /// Compute `s_i`, the DFSPH factor, and cache all kernel gradients (TVCG 2017, Alg. 1 lines
@@ -45,15 +81,22 @@ pub fn density_and_factor(
     boundary: &BoundaryParticles,
     fluid_lists: &NeighborLists,
     boundary_lists: &NeighborLists,
-    fluid_grad: &mut Vec<Vec2>,
-    boundary_grad: &mut Vec<Vec2>,
+    cache: &mut PairCache,
     max_factor: f32,
 ) {
-    fluid_grad.resize(fluid_lists.pair_count(), Vec2::ZERO);
-    boundary_grad.resize(boundary_lists.pair_count(), Vec2::ZERO);
+    let n = fluid.len();
+    cache
+        .fluid_grad
+        .resize(fluid_lists.pair_count(), Vec2::ZERO);
+    cache
+        .boundary_grad
+        .resize(boundary_lists.pair_count(), Vec2::ZERO);
+    cache.grad_sum.resize(n, Vec2::ZERO);
+    cache.wall_flux.resize(n, 0.0);
     let pos = &fluid.position;
     let bpos = &boundary.position;
     let bvol = &boundary.volume;
+    let bvel = &boundary.velocity;
     // The factor's guard: a particle whose gradient sums are this small has (almost) no
     // neighbours and gets no pressure (its density cannot be corrected anyway).
     let eps = 1.0e-6 / (kernel.support() * kernel.support());
@@ -65,12 +108,15 @@ pub fn density_and_factor(
         .density_ratio
         .par_chunks_mut(PAIR_CHUNK)
         .zip(fluid.factor.par_chunks_mut(PAIR_CHUNK))
-        .zip(split_by_chunk(fluid_grad, fluid_lists))
-        .zip(split_by_chunk(boundary_grad, boundary_lists))
+        .zip(cache.grad_sum.par_chunks_mut(PAIR_CHUNK))
+        .zip(cache.wall_flux.par_chunks_mut(PAIR_CHUNK))
+        .zip(split_by_chunk(&mut cache.fluid_grad, fluid_lists))
+        .zip(split_by_chunk(&mut cache.boundary_grad, boundary_lists))
         .enumerate()
-        .for_each(|(c, (((s, a), mut fg), mut bg))| {
+        .for_each(|(c, (((((s, a), gs), wf), mut fg), mut bg))| {
             let base = c * PAIR_CHUNK;
-            for (k, (s, a)) in s.iter_mut().zip(a.iter_mut()).enumerate() {
+            let per_particle = s.iter_mut().zip(a.iter_mut()).zip(gs).zip(wf);
+            for (k, (((s, a), gs), wf)) in per_particle.enumerate() {
                 let i = base + k;
                 let xi = pos[i];
                 let mut density = self_w;
@@ -90,14 +136,18 @@ pub fn density_and_factor(
                 let walls = boundary_lists.of(i);
                 let (grads, rest) = bg.split_at_mut(walls.len());
                 bg = rest;
+                let mut flux = 0.0f32;
                 for (g, &b) in grads.iter_mut().zip(walls) {
                     let (w, grad) = kernel.w_and_grad(xi - bpos[b as usize]);
                     *g = grad;
                     let vb = bvol[b as usize];
                     density += vb * w;
                     grad_sum += vb * grad;
+                    flux += vb * bvel[b as usize].dot(grad);
                 }
                 *s = density;
+                *gs = grad_sum;
+                *wf = flux;
                 let denom = grad_sum.length_squared() + grad_sq;
                 *a = if denom > eps {
                     (1.0 / denom).min(max_factor)
@@ -149,64 +199,78 @@ fn split_by_chunk<'a, T>(values: &'a mut [T], lists: &NeighborLists) -> Vec<&'a 
     out
 }
 
+/// `Σ_k term(j_k, g_k)` over one particle's neighbour list (indices and cached gradients),
+/// summed into four independent accumulators. A single running sum makes every pair wait for
+/// the previous pair's floating-point add (4 cycles of latency); with four the pairs overlap.
+/// The summation order is fixed, so results stay deterministic.
+#[inline(always)]
+fn pair_sum<T>(indices: &[u32], grads: &[Vec2], term: impl Fn(usize, Vec2) -> T) -> T
+where
+    T: Copy + Default + std::ops::Add<Output = T>,
+{
+    let mut acc = [T::default(); 4];
+    let mut idx = indices.chunks_exact(4);
+    let mut grd = grads.chunks_exact(4);
+    for (j, g) in (&mut idx).zip(&mut grd) {
+        acc[0] = acc[0] + term(j[0] as usize, g[0]);
+        acc[1] = acc[1] + term(j[1] as usize, g[1]);
+        acc[2] = acc[2] + term(j[2] as usize, g[2]);
+        acc[3] = acc[3] + term(j[3] as usize, g[3]);
+    }
+    for (k, (&j, &g)) in idx.remainder().iter().zip(grd.remainder()).enumerate() {
+        acc[k] = acc[k] + term(j as usize, g);
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3])
+}
+
 /// Relative rate of density change `Dρ_i/Dt / ρ0 = Σ_j V_j (v_i − v_j)·∇W_ij +
-/// Σ_b Ψ_b (v_i − v_b)·∇W_ib` (continuity equation, TVCG 2017 eq. 7), in 1/s.
+/// Σ_b Ψ_b (v_i − v_b)·∇W_ib` (continuity equation, TVCG 2017 eq. 7), in 1/s. Written as
+/// `v_i·(Σ_j V_j ∇W_ij + Σ_b Ψ_b ∇W_ib) − V Σ_j v_j·∇W_ij − Σ_b Ψ_b v_b·∇W_ib`, whose first and
+/// last terms are cached for the step, so that an iteration reads no wall pairs.
 #[inline]
-fn density_rate(
-    i: usize,
-    volume: f32,
-    vel: &[Vec2],
-    boundary: &BoundaryParticles,
-    nb: &Neighborhood,
-) -> f32 {
-    let vi = vel[i];
-    let mut rate = 0.0f32;
+fn density_rate(i: usize, volume: f32, vel: &[Vec2], nb: &Neighborhood) -> f32 {
     let r = nb.fluid.range(i);
-    let mut fluid_sum = 0.0f32;
-    for (&j, &g) in nb.fluid.indices[r.clone()].iter().zip(&nb.fluid_grad[r]) {
-        fluid_sum += (vi - vel[j as usize]).dot(g);
-    }
-    rate += volume * fluid_sum;
-    let r = nb.boundary.range(i);
-    for (&b, &g) in nb.boundary.indices[r.clone()]
-        .iter()
-        .zip(&nb.boundary_grad[r])
-    {
-        let b = b as usize;
-        rate += boundary.volume[b] * (vi - boundary.velocity[b]).dot(g);
-    }
-    rate
+    let fluid_sum = pair_sum(&nb.fluid.indices[r.clone()], &nb.fluid_grad[r], |j, g| {
+        vel[j].dot(g)
+    });
+    vel[i].dot(nb.grad_sum[i]) - volume * fluid_sum - nb.wall_flux[i]
+}
+
+/// The velocity change `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − κ_i Σ_b Ψ_b ∇W_ib` of one
+/// particle, written as `−κ_i (Σ_j V_j ∇W_ij + Σ_b Ψ_b ∇W_ib) − V Σ_j κ_j ∇W_ij` with the
+/// first sum cached for the step.
+#[inline]
+fn pressure_dv(i: usize, volume: f32, kappa: &[f32], nb: &Neighborhood) -> Vec2 {
+    let r = nb.fluid.range(i);
+    let neighbors = pair_sum(&nb.fluid.indices[r.clone()], &nb.fluid_grad[r], |j, g| {
+        kappa[j] * g
+    });
+    -(kappa[i] * nb.grad_sum[i] + volume * neighbors)
 }
 
 /// Apply `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − κ_i Σ_b Ψ_b ∇W_ib` to every fluid velocity.
-pub fn apply_pressure(
+pub fn apply_pressure(volume: f32, kappa: &[f32], vel: &mut [Vec2], nb: &Neighborhood) {
+    vel.par_iter_mut()
+        .enumerate()
+        .for_each(|(i, v)| *v += pressure_dv(i, volume, kappa, nb));
+}
+
+/// [`apply_pressure`] for a Jacobi increment `Δκ`, also adding it to the running total κ (one
+/// pass instead of two).
+fn apply_increment(
     volume: f32,
-    kappa: &[f32],
+    increment: &[f32],
     vel: &mut [Vec2],
-    boundary: &BoundaryParticles,
+    total: &mut [f32],
     nb: &Neighborhood,
 ) {
-    vel.par_iter_mut().enumerate().for_each(|(i, v)| {
-        let ki = kappa[i];
-        let r = nb.fluid.range(i);
-        let mut dv = Vec2::ZERO;
-        for (&j, &g) in nb.fluid.indices[r.clone()].iter().zip(&nb.fluid_grad[r]) {
-            dv += (ki + kappa[j as usize]) * g;
-        }
-        dv *= volume;
-        if ki != 0.0 {
-            let r = nb.boundary.range(i);
-            let mut db = Vec2::ZERO;
-            for (&b, &g) in nb.boundary.indices[r.clone()]
-                .iter()
-                .zip(&nb.boundary_grad[r])
-            {
-                db += boundary.volume[b as usize] * g;
-            }
-            dv += ki * db;
-        }
-        *v -= dv;
-    });
+    vel.par_iter_mut()
+        .zip(total.par_iter_mut())
+        .enumerate()
+        .for_each(|(i, (v, t))| {
+            *v += pressure_dv(i, volume, increment, nb);
+            *t += increment[i];
+        });
 }
 
 /// Outcome of one solve.
@@ -238,6 +302,8 @@ pub struct SolverScratch {
     residual: Vec<f32>,
     /// Per-particle stiffness increment of the current iteration.
     delta: Vec<f32>,
+    /// The increment applied last, to take an iteration back.
+    previous_delta: Vec<f32>,
 }
 
 /// The Jacobi iteration shared by the density and divergence solves: compute every residual,
@@ -251,7 +317,6 @@ pub struct SolverScratch {
 fn jacobi_solve(
     volume: f32,
     fluid: &mut FluidParticles,
-    boundary: &BoundaryParticles,
     nb: &Neighborhood,
     limits: SolveLimits,
     scratch: &mut SolverScratch,
@@ -266,49 +331,51 @@ fn jacobi_solve(
     if n == 0 {
         return SolveReport::default();
     }
-    let compute_residuals = |vel: &[Vec2], residual: &mut [f32]| -> (f64, f64) {
+    // The residuals, and from them the next Jacobi increment Δκ_i = e_i·a_i (times the
+    // solve's scale), in the same pass.
+    let factor = &fluid.factor;
+    let compute_residuals = |vel: &[Vec2], residual: &mut [f32], delta: &mut [f32]| -> (f64, f64) {
         let (sum, max) = residual
             .par_iter_mut()
+            .zip(delta.par_iter_mut())
             .enumerate()
-            .map(|(i, e)| {
-                let rate = density_rate(i, volume, vel, boundary, nb);
+            .map(|(i, (e, d))| {
+                let rate = density_rate(i, volume, vel, nb);
                 *e = residual_of(i, rate).max(0.0);
+                *d = *e * factor[i] * increment_scale;
                 (*e as f64, *e as f64)
             })
             .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));
         (sum / n as f64 * to_pct, max * to_pct)
     };
-    let (mut avg, mut max) = compute_residuals(&fluid.velocity, &mut scratch.residual);
+    let (mut avg, mut max) =
+        compute_residuals(&fluid.velocity, &mut scratch.residual, &mut scratch.delta);
     let mut iterations = 0;
     while (avg > limits.tolerance_pct
         || max > limits.max_error_pct
         || iterations < limits.min_iterations)
         && iterations < limits.max_iterations
     {
-        scratch
-            .delta
-            .par_iter_mut()
-            .zip(scratch.residual.par_iter())
-            .zip(fluid.factor.par_iter())
-            .zip(total.par_iter_mut())
-            .for_each(|(((d, &e), &a), t)| {
-                *d = e * a * increment_scale;
-                *t += *d;
-            });
-        apply_pressure(volume, &scratch.delta, &mut fluid.velocity, boundary, nb);
+        apply_increment(volume, &scratch.delta, &mut fluid.velocity, total, nb);
+        // The applied increment is kept to take the iteration back; the residual pass writes
+        // the next one into the other buffer.
+        std::mem::swap(&mut scratch.delta, &mut scratch.previous_delta);
+        scratch.delta.resize(n, 0.0);
         let previous = (avg, max);
-        (avg, max) = compute_residuals(&fluid.velocity, &mut scratch.residual);
+        (avg, max) = compute_residuals(&fluid.velocity, &mut scratch.residual, &mut scratch.delta);
         iterations += 1;
         if avg.is_nan() || avg > DIVERGING_ERROR_GROWTH * previous.0 + limits.tolerance_pct {
             // Jacobi is not guaranteed to converge (dense clusters, e.g. fluid pulled into a
             // point): an iteration that makes the error grow is taken back and the solve
             // stops, rather than feeding the growth into the velocities.
-            scratch.delta.par_iter_mut().for_each(|d| *d = -*d);
-            apply_pressure(volume, &scratch.delta, &mut fluid.velocity, boundary, nb);
-            total
-                .par_iter_mut()
-                .zip(scratch.delta.par_iter())
-                .for_each(|(t, &d)| *t += d);
+            scratch.previous_delta.par_iter_mut().for_each(|d| *d = -*d);
+            apply_increment(
+                volume,
+                &scratch.previous_delta,
+                &mut fluid.velocity,
+                total,
+                nb,
+            );
             (avg, max) = previous;
             break;
         }
@@ -329,7 +396,6 @@ pub fn divergence_solve(
     dt: f32,
     warm_start: bool,
     fluid: &mut FluidParticles,
-    boundary: &BoundaryParticles,
     nb: &Neighborhood,
     limits: SolveLimits,
     scratch: &mut SolverScratch,
@@ -338,14 +404,13 @@ pub fn divergence_solve(
     if warm_start {
         let w = warm_factor();
         total.par_iter_mut().for_each(|k| *k = k.max(0.0) * w);
-        apply_pressure(volume, &total, &mut fluid.velocity, boundary, nb);
+        apply_pressure(volume, &total, &mut fluid.velocity, nb);
     } else {
         total.iter_mut().for_each(|k| *k = 0.0);
     }
     let report = jacobi_solve(
         volume,
         fluid,
-        boundary,
         nb,
         limits,
         scratch,
@@ -377,7 +442,6 @@ pub fn density_solve(
     max_correction: f32,
     warm_start: bool,
     fluid: &mut FluidParticles,
-    boundary: &BoundaryParticles,
     nb: &Neighborhood,
     limits: SolveLimits,
     scratch: &mut SolverScratch,
@@ -388,7 +452,7 @@ pub fn density_solve(
     if warm_start {
         let w = warm_factor();
         total.par_iter_mut().for_each(|p| *p = p.max(0.0) * dt * w);
-        apply_pressure(volume, &total, &mut fluid.velocity, boundary, nb);
+        apply_pressure(volume, &total, &mut fluid.velocity, nb);
     } else {
         total.iter_mut().for_each(|k| *k = 0.0);
     }
@@ -396,7 +460,6 @@ pub fn density_solve(
     let report = jacobi_solve(
         volume,
         fluid,
-        boundary,
         nb,
         limits,
         scratch,
@@ -424,7 +487,6 @@ pub fn wcsph_pressure(
     stiffness: f32,
     exponent: f32,
     fluid: &mut FluidParticles,
-    boundary: &BoundaryParticles,
     nb: &Neighborhood,
     scratch: &mut SolverScratch,
 ) -> SolveReport {
@@ -441,7 +503,7 @@ pub fn wcsph_pressure(
             // In the κ form: m_j p/ρ² = V_j ρ0 p/(ρ0 s)² = V_j (p/ρ0)/s², times Δt.
             *k = dt * *p / (s * s);
         });
-    apply_pressure(volume, &scratch.delta, &mut fluid.velocity, boundary, nb);
+    apply_pressure(volume, &scratch.delta, &mut fluid.velocity, nb);
     let (sum, max) = fluid
         .density_ratio
         .par_iter()
