@@ -71,8 +71,8 @@ impl<'a> Neighborhood<'a> {
     }
 }
 
-/// Compute `s_i`, the DFSPH factor, and cache all kernel gradients (TVCG 2017, Alg. 1 lines
-/// 2–3).
+/// Compute `s_i`, the DFSPH factor, and cache all kernel gradients and the per-particle sums
+/// of [`PairCache`] (TVCG 2017, Alg. 1 lines 2–3).
 #[allow(clippy::too_many_arguments)]
 pub fn density_and_factor(
     kernel: &CubicSpline,
@@ -298,8 +298,6 @@ pub struct SolveLimits {
 /// Scratch arrays of the Jacobi iterations.
 #[derive(Default, Clone, Debug)]
 pub struct SolverScratch {
-    /// Per-particle residual (source term) of the current iteration.
-    residual: Vec<f32>,
     /// Per-particle stiffness increment of the current iteration.
     delta: Vec<f32>,
     /// The increment applied last, to take an iteration back.
@@ -326,7 +324,6 @@ fn jacobi_solve(
     total: &mut [f32],
 ) -> SolveReport {
     let n = fluid.len();
-    scratch.residual.resize(n, 0.0);
     scratch.delta.resize(n, 0.0);
     if n == 0 {
         return SolveReport::default();
@@ -334,22 +331,20 @@ fn jacobi_solve(
     // The residuals, and from them the next Jacobi increment Δκ_i = e_i·a_i (times the
     // solve's scale), in the same pass.
     let factor = &fluid.factor;
-    let compute_residuals = |vel: &[Vec2], residual: &mut [f32], delta: &mut [f32]| -> (f64, f64) {
-        let (sum, max) = residual
+    let compute_residuals = |vel: &[Vec2], delta: &mut [f32]| -> (f64, f64) {
+        let (sum, max) = delta
             .par_iter_mut()
-            .zip(delta.par_iter_mut())
             .enumerate()
-            .map(|(i, (e, d))| {
+            .map(|(i, d)| {
                 let rate = density_rate(i, volume, vel, nb);
-                *e = residual_of(i, rate).max(0.0);
-                *d = *e * factor[i] * increment_scale;
-                (*e as f64, *e as f64)
+                let e = residual_of(i, rate).max(0.0);
+                *d = e * factor[i] * increment_scale;
+                (e as f64, e as f64)
             })
             .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));
         (sum / n as f64 * to_pct, max * to_pct)
     };
-    let (mut avg, mut max) =
-        compute_residuals(&fluid.velocity, &mut scratch.residual, &mut scratch.delta);
+    let (mut avg, mut max) = compute_residuals(&fluid.velocity, &mut scratch.delta);
     let mut iterations = 0;
     while (avg > limits.tolerance_pct
         || max > limits.max_error_pct
@@ -362,7 +357,7 @@ fn jacobi_solve(
         std::mem::swap(&mut scratch.delta, &mut scratch.previous_delta);
         scratch.delta.resize(n, 0.0);
         let previous = (avg, max);
-        (avg, max) = compute_residuals(&fluid.velocity, &mut scratch.residual, &mut scratch.delta);
+        (avg, max) = compute_residuals(&fluid.velocity, &mut scratch.delta);
         iterations += 1;
         if avg.is_nan() || avg > DIVERGING_ERROR_GROWTH * previous.0 + limits.tolerance_pct {
             // Jacobi is not guaranteed to converge (dense clusters, e.g. fluid pulled into a

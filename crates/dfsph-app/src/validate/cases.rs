@@ -572,8 +572,9 @@ pub fn dam_break(s: Settings) -> Result<Vec<CaseReport>> {
          the difference lies at the front itself, most likely at the thin tip running along \
          the floor, which friction and surface tension slow at the experiments' 3–15 cm \
          scale and which our free-slip walls at 1 m leave free (the smaller of Martin & \
-         Moyce's two columns is the slower one, as that would predict). Tolerance: every data point within 10 % (the \
-         issue; Martin & Moyce's own two column sizes differ by up to 9 %).\n",
+         Moyce's two columns is the slower one, as that would predict). Tolerance: every \
+         data point within 10 % (the issue; Martin & Moyce's own two column sizes differ by \
+         up to 9 %).\n",
         2.0 * A,
         TANK_LENGTH * A,
         3.0 * A,
