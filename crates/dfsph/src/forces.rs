@@ -74,12 +74,15 @@ pub fn non_pressure_accelerations(
                 let mut smooth = Vec2::ZERO;
                 let mut laplace = Vec2::ZERO;
                 let r = nb.fluid.range(i);
-                for (&j, &g) in nb.fluid.indices[r.clone()].iter().zip(&nb.fluid_grad[r]) {
+                for &j in &nb.fluid.indices[r] {
                     let j = j as usize;
                     let xij = xi - pos[j];
                     let vij = vi - vel[j];
+                    // ∇W is recomputed here (once per step) rather than cached per pair: the
+                    // solver keeps its copy in SIMD blocks.
+                    let (w, g) = kernel.w_and_grad(xij);
                     if xsph > 0.0 {
-                        smooth -= vij * kernel.w(xij.length());
+                        smooth -= vij * w;
                     }
                     if lap > 0.0 {
                         laplace += g * (vij.dot(xij) / (xij.length_squared() + h2));

@@ -17,6 +17,7 @@
 //! ```
 
 pub mod actions;
+pub mod blocked;
 pub mod boundary;
 pub mod forces;
 pub mod kernel;

@@ -20,6 +20,7 @@
 use glam::Vec2;
 use rayon::prelude::*;
 
+use crate::blocked::{BlockedPairs, LANES};
 use crate::kernel::CubicSpline;
 use crate::neighbors::NeighborLists;
 use crate::particles::{BoundaryParticles, FluidParticles};
@@ -28,8 +29,6 @@ use crate::particles::{BoundaryParticles, FluidParticles};
 /// change.
 #[derive(Clone, Debug, Default)]
 pub struct PairCache {
-    /// `∇W_ij` per fluid–fluid pair, in list order.
-    pub fluid_grad: Vec<Vec2>,
     /// `∇W_ib` per fluid–boundary pair, in list order.
     pub boundary_grad: Vec<Vec2>,
     /// Per particle, `Σ_j V_j ∇W_ij + Σ_b Ψ_b ∇W_ib`: what a uniform κ or velocity sees.
@@ -37,14 +36,16 @@ pub struct PairCache {
     /// Per particle, `Σ_b Ψ_b v_b·∇W_ib`: the walls' share of the density rate (walls keep
     /// their velocity for the whole step).
     pub wall_flux: Vec<f32>,
+    /// Neighbour indices and `∇W_ij` of the fluid–fluid pairs, in blocks of 16 particles for
+    /// the solver's SIMD passes.
+    pub blocks: BlockedPairs,
 }
 
 /// Read-only view of one step's neighbourhoods: lists and the kernel gradients cached for
 /// every pair, valid while positions do not change.
 pub struct Neighborhood<'a> {
-    /// Fluid–fluid lists (self excluded) and `∇W_ij` per pair.
+    /// Fluid–fluid lists (self excluded); their `∇W_ij` are in `blocks`.
     pub fluid: &'a NeighborLists,
-    pub fluid_grad: &'a [Vec2],
     /// Fluid–boundary lists and `∇W_ib` per pair.
     pub boundary: &'a NeighborLists,
     pub boundary_grad: &'a [Vec2],
@@ -52,6 +53,8 @@ pub struct Neighborhood<'a> {
     pub grad_sum: &'a [Vec2],
     /// [`PairCache::wall_flux`].
     pub wall_flux: &'a [f32],
+    /// [`PairCache::blocks`].
+    pub blocks: &'a BlockedPairs,
 }
 
 impl<'a> Neighborhood<'a> {
@@ -62,11 +65,11 @@ impl<'a> Neighborhood<'a> {
     ) -> Self {
         Self {
             fluid,
-            fluid_grad: &cache.fluid_grad,
             boundary,
             boundary_grad: &cache.boundary_grad,
             grad_sum: &cache.grad_sum,
             wall_flux: &cache.wall_flux,
+            blocks: &cache.blocks,
         }
     }
 }
@@ -85,9 +88,7 @@ pub fn density_and_factor(
     max_factor: f32,
 ) {
     let n = fluid.len();
-    cache
-        .fluid_grad
-        .resize(fluid_lists.pair_count(), Vec2::ZERO);
+    cache.blocks.prepare(fluid_lists);
     cache
         .boundary_grad
         .resize(boundary_lists.pair_count(), Vec2::ZERO);
@@ -103,17 +104,17 @@ pub fn density_and_factor(
     let self_w = volume * kernel.w_zero();
 
     // One parallel pass over chunks of particles; each chunk owns the gradient slots of its
-    // particles' pairs.
+    // particles' pairs (its blocks, for fluid pairs).
     fluid
         .density_ratio
         .par_chunks_mut(PAIR_CHUNK)
         .zip(fluid.factor.par_chunks_mut(PAIR_CHUNK))
         .zip(cache.grad_sum.par_chunks_mut(PAIR_CHUNK))
         .zip(cache.wall_flux.par_chunks_mut(PAIR_CHUNK))
-        .zip(split_by_chunk(&mut cache.fluid_grad, fluid_lists))
+        .zip(cache.blocks.writers(PAIR_CHUNK / LANES))
         .zip(split_by_chunk(&mut cache.boundary_grad, boundary_lists))
         .enumerate()
-        .for_each(|(c, (((((s, a), gs), wf), mut fg), mut bg))| {
+        .for_each(|(c, (((((s, a), gs), wf), mut fluid_pairs), mut bg))| {
             let base = c * PAIR_CHUNK;
             let per_particle = s.iter_mut().zip(a.iter_mut()).zip(gs).zip(wf);
             for (k, (((s, a), gs), wf)) in per_particle.enumerate() {
@@ -122,17 +123,14 @@ pub fn density_and_factor(
                 let mut density = self_w;
                 let mut grad_sum = Vec2::ZERO;
                 let mut grad_sq = 0.0f32;
-                let neighbors = fluid_lists.of(i);
-                let (grads, rest) = fg.split_at_mut(neighbors.len());
-                fg = rest;
-                for (g, &j) in grads.iter_mut().zip(neighbors) {
+                fluid_pairs.write_lane(i, fluid_lists.of(i), |j| {
                     let (w, grad) = kernel.w_and_grad(xi - pos[j as usize]);
-                    *g = grad;
                     density += volume * w;
                     let vg = volume * grad;
                     grad_sum += vg;
                     grad_sq += vg.length_squared();
-                }
+                    grad
+                });
                 let walls = boundary_lists.of(i);
                 let (grads, rest) = bg.split_at_mut(walls.len());
                 bg = rest;
@@ -199,60 +197,48 @@ fn split_by_chunk<'a, T>(values: &'a mut [T], lists: &NeighborLists) -> Vec<&'a 
     out
 }
 
-/// `Σ_k term(j_k, g_k)` over one particle's neighbour list (indices and cached gradients),
-/// summed into four independent accumulators. A single running sum makes every pair wait for
-/// the previous pair's floating-point add (4 cycles of latency); with four the pairs overlap.
-/// The summation order is fixed, so results stay deterministic.
-#[inline(always)]
-fn pair_sum<T>(indices: &[u32], grads: &[Vec2], term: impl Fn(usize, Vec2) -> T) -> T
-where
-    T: Copy + Default + std::ops::Add<Output = T>,
-{
-    let mut acc = [T::default(); 4];
-    let mut idx = indices.chunks_exact(4);
-    let mut grd = grads.chunks_exact(4);
-    for (j, g) in (&mut idx).zip(&mut grd) {
-        acc[0] = acc[0] + term(j[0] as usize, g[0]);
-        acc[1] = acc[1] + term(j[1] as usize, g[1]);
-        acc[2] = acc[2] + term(j[2] as usize, g[2]);
-        acc[3] = acc[3] + term(j[3] as usize, g[3]);
-    }
-    for (k, (&j, &g)) in idx.remainder().iter().zip(grd.remainder()).enumerate() {
-        acc[k] = acc[k] + term(j as usize, g);
-    }
-    (acc[0] + acc[1]) + (acc[2] + acc[3])
-}
-
-/// Relative rate of density change `Dρ_i/Dt / ρ0 = Σ_j V_j (v_i − v_j)·∇W_ij +
-/// Σ_b Ψ_b (v_i − v_b)·∇W_ib` (continuity equation, TVCG 2017 eq. 7), in 1/s. Written as
+/// Relative rates of density change `Dρ_i/Dt / ρ0 = Σ_j V_j (v_i − v_j)·∇W_ij +
+/// Σ_b Ψ_b (v_i − v_b)·∇W_ib` (continuity equation, TVCG 2017 eq. 7), in 1/s, of the 16
+/// particles of block `b` (lanes past the last particle read 0). Written as
 /// `v_i·(Σ_j V_j ∇W_ij + Σ_b Ψ_b ∇W_ib) − V Σ_j v_j·∇W_ij − Σ_b Ψ_b v_b·∇W_ib`, whose first and
 /// last terms are cached for the step, so that an iteration reads no wall pairs.
 #[inline]
-fn density_rate(i: usize, volume: f32, vel: &[Vec2], nb: &Neighborhood) -> f32 {
-    let r = nb.fluid.range(i);
-    let fluid_sum = pair_sum(&nb.fluid.indices[r.clone()], &nb.fluid_grad[r], |j, g| {
-        vel[j].dot(g)
-    });
-    vel[i].dot(nb.grad_sum[i]) - volume * fluid_sum - nb.wall_flux[i]
+fn block_density_rates(b: usize, volume: f32, vel: &[Vec2], nb: &Neighborhood) -> [f32; LANES] {
+    let fluid = nb.blocks.velocity_gradient_dots(b, vel);
+    std::array::from_fn(|l| {
+        let i = b * LANES + l;
+        if i < vel.len() {
+            vel[i].dot(nb.grad_sum[i]) - volume * fluid[l] - nb.wall_flux[i]
+        } else {
+            0.0
+        }
+    })
 }
 
-/// The velocity change `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − κ_i Σ_b Ψ_b ∇W_ib` of one
-/// particle, written as `−κ_i (Σ_j V_j ∇W_ij + Σ_b Ψ_b ∇W_ib) − V Σ_j κ_j ∇W_ij` with the
-/// first sum cached for the step.
+/// The velocity changes `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − κ_i Σ_b Ψ_b ∇W_ib` of the 16
+/// particles of block `b`, written as `−κ_i (Σ_j V_j ∇W_ij + Σ_b Ψ_b ∇W_ib) − V Σ_j κ_j ∇W_ij`
+/// with the first sum cached for the step.
 #[inline]
-fn pressure_dv(i: usize, volume: f32, kappa: &[f32], nb: &Neighborhood) -> Vec2 {
-    let r = nb.fluid.range(i);
-    let neighbors = pair_sum(&nb.fluid.indices[r.clone()], &nb.fluid_grad[r], |j, g| {
-        kappa[j] * g
-    });
-    -(kappa[i] * nb.grad_sum[i] + volume * neighbors)
+fn block_pressure_dv(b: usize, volume: f32, kappa: &[f32], nb: &Neighborhood) -> [Vec2; LANES] {
+    let (sx, sy) = nb.blocks.weighted_gradient_sums(b, kappa);
+    std::array::from_fn(|l| {
+        let i = b * LANES + l;
+        if i < kappa.len() {
+            -(kappa[i] * nb.grad_sum[i] + volume * Vec2::new(sx[l], sy[l]))
+        } else {
+            Vec2::ZERO
+        }
+    })
 }
 
 /// Apply `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − κ_i Σ_b Ψ_b ∇W_ib` to every fluid velocity.
 pub fn apply_pressure(volume: f32, kappa: &[f32], vel: &mut [Vec2], nb: &Neighborhood) {
-    vel.par_iter_mut()
-        .enumerate()
-        .for_each(|(i, v)| *v += pressure_dv(i, volume, kappa, nb));
+    vel.par_chunks_mut(LANES).enumerate().for_each(|(b, v)| {
+        let dv = block_pressure_dv(b, volume, kappa, nb);
+        for (v, dv) in v.iter_mut().zip(dv) {
+            *v += dv;
+        }
+    });
 }
 
 /// [`apply_pressure`] for a Jacobi increment `Δκ`, also adding it to the running total κ (one
@@ -264,12 +250,16 @@ fn apply_increment(
     total: &mut [f32],
     nb: &Neighborhood,
 ) {
-    vel.par_iter_mut()
-        .zip(total.par_iter_mut())
+    vel.par_chunks_mut(LANES)
+        .zip(total.par_chunks_mut(LANES))
+        .zip(increment.par_chunks(LANES))
         .enumerate()
-        .for_each(|(i, (v, t))| {
-            *v += pressure_dv(i, volume, increment, nb);
-            *t += increment[i];
+        .for_each(|(b, ((v, t), inc))| {
+            let dv = block_pressure_dv(b, volume, increment, nb);
+            for (((v, t), dv), &inc) in v.iter_mut().zip(t).zip(dv).zip(inc) {
+                *v += dv;
+                *t += inc;
+            }
         });
 }
 
@@ -333,13 +323,19 @@ fn jacobi_solve(
     let factor = &fluid.factor;
     let compute_residuals = |vel: &[Vec2], delta: &mut [f32]| -> (f64, f64) {
         let (sum, max) = delta
-            .par_iter_mut()
+            .par_chunks_mut(LANES)
             .enumerate()
-            .map(|(i, d)| {
-                let rate = density_rate(i, volume, vel, nb);
-                let e = residual_of(i, rate).max(0.0);
-                *d = e * factor[i] * increment_scale;
-                (e as f64, e as f64)
+            .map(|(b, d)| {
+                let rates = block_density_rates(b, volume, vel, nb);
+                let (mut sum, mut max) = (0.0f64, 0.0f64);
+                for (l, (d, rate)) in d.iter_mut().zip(rates).enumerate() {
+                    let i = b * LANES + l;
+                    let e = residual_of(i, rate).max(0.0);
+                    *d = e * factor[i] * increment_scale;
+                    sum += e as f64;
+                    max = max.max(e as f64);
+                }
+                (sum, max)
             })
             .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));
         (sum / n as f64 * to_pct, max * to_pct)
@@ -661,6 +657,9 @@ mod tests {
             .collect();
         let mut changed = v.clone();
         apply_pressure(p.volume, &kappa, &mut changed, &nb);
+        let rates: Vec<f32> = (0..p.cache.blocks.blocks())
+            .flat_map(|b| block_density_rates(b, p.volume, v, &nb))
+            .collect();
         let h = p.kernel.support();
         let mut wall_pairs = 0;
         for i in 0..p.fluid.len() {
@@ -688,7 +687,7 @@ mod tests {
                     wall_pairs += 1;
                 }
             }
-            let cached = density_rate(i, p.volume, v, &nb) as f64;
+            let cached = rates[i] as f64;
             assert!(
                 (cached - rate).abs() <= 1.0e-5 * scale.max(1.0),
                 "particle {i}: rate {cached} from the cache, {rate} directly"

@@ -1,0 +1,421 @@
+//! Fluid–fluid pairs in blocks of 16 particles, laid out for the pressure solver's SIMD passes.
+//!
+//! A Jacobi iteration walks every neighbour list twice (the density rate and the velocity
+//! change), and each pair costs a load of its index and kernel gradient, a random read of the
+//! neighbour's κ or velocity, and two multiply-adds. Walked one list at a time (CSR) that is a
+//! chain of dependent scalar operations per particle. Here 16 consecutive particles (sorted by
+//! cell, so their lists have similar lengths) are walked together: slot `k` of a block holds
+//! the `k`-th neighbour of each of its 16 particles, so one AVX-512 gather reads 16 neighbour
+//! values and one multiply-add handles 16 pairs. Shorter lists are padded with the particle's
+//! own index and a zero gradient (about 13 % padding on the dam break, BENCHMARK.md).
+//!
+//! Sums run over a particle's slots in list order in both the SIMD and the scalar path, so the
+//! pair sums are deterministic; the two paths differ only in the rounding of multiply-adds.
+//! The SIMD path is chosen at run time when the CPU has AVX-512F; the release binary stays
+//! generic x86-64.
+
+use glam::Vec2;
+use rayon::prelude::*;
+
+use crate::neighbors::NeighborLists;
+
+/// Particles per block: one AVX-512 vector of f32.
+pub const LANES: usize = 16;
+
+/// Neighbour indices and kernel gradients of every fluid–fluid pair, by block and slot.
+#[derive(Clone, Debug, Default)]
+pub struct BlockedPairs {
+    /// Particles the blocks were built for.
+    n: usize,
+    /// Block `b` owns slots `slot_start[b]..slot_start[b + 1]`; slot `s` occupies entries
+    /// `s·16 .. s·16 + 16` of the arrays below, one per lane.
+    slot_start: Vec<u32>,
+    /// Neighbour index per slot and lane (< `n`, so every gather stays in bounds).
+    index: Vec<u32>,
+    grad_x: Vec<f32>,
+    grad_y: Vec<f32>,
+    /// Whether the CPU runs the AVX-512 kernels.
+    avx512: bool,
+}
+
+impl BlockedPairs {
+    /// Number of blocks (the last may be partly filled).
+    pub fn blocks(&self) -> usize {
+        self.n.div_ceil(LANES)
+    }
+
+    /// Slots of all blocks together, times 16: the pair entries including padding.
+    pub fn entries(&self) -> usize {
+        self.index.len()
+    }
+
+    /// Lay the blocks out for `lists` (fluid–fluid, self excluded): each block gets as many
+    /// slots as its longest list. The entries are then written through [`Self::writers`].
+    pub fn prepare(&mut self, lists: &NeighborLists) {
+        let n = lists.len();
+        self.n = n;
+        self.avx512 = simd_available();
+        let blocks = n.div_ceil(LANES);
+        self.slot_start.clear();
+        self.slot_start.push(0);
+        let mut total = 0u32;
+        for b in 0..blocks {
+            let longest = (b * LANES..((b + 1) * LANES).min(n))
+                .map(|i| lists.offsets[i + 1] - lists.offsets[i])
+                .max()
+                .unwrap_or(0);
+            total += longest;
+            self.slot_start.push(total);
+        }
+        let entries = total as usize * LANES;
+        self.index.resize(entries, 0);
+        self.grad_x.resize(entries, 0.0);
+        self.grad_y.resize(entries, 0.0);
+    }
+
+    /// One writer per `blocks_per_writer` consecutive blocks, owning their entries, to fill in
+    /// parallel after [`Self::prepare`]. The lanes past the last particle are padded here.
+    pub fn writers(&mut self, blocks_per_writer: usize) -> Vec<BlockWriter<'_>> {
+        let blocks = self.blocks();
+        let n = self.n;
+        let mut out = Vec::with_capacity(blocks.div_ceil(blocks_per_writer));
+        let (mut idx, mut gx, mut gy) = (
+            &mut self.index[..],
+            &mut self.grad_x[..],
+            &mut self.grad_y[..],
+        );
+        for first in (0..blocks).step_by(blocks_per_writer) {
+            let last = (first + blocks_per_writer).min(blocks);
+            let len = (self.slot_start[last] - self.slot_start[first]) as usize * LANES;
+            let (a, rest_i) = std::mem::take(&mut idx).split_at_mut(len);
+            let (bx, rest_x) = std::mem::take(&mut gx).split_at_mut(len);
+            let (by, rest_y) = std::mem::take(&mut gy).split_at_mut(len);
+            (idx, gx, gy) = (rest_i, rest_x, rest_y);
+            let mut w = BlockWriter {
+                n,
+                slot_start: &self.slot_start,
+                base: self.slot_start[first] as usize,
+                index: a,
+                grad_x: bx,
+                grad_y: by,
+            };
+            if last == blocks {
+                for i in n..last * LANES {
+                    w.write_lane(i, &[], |_| Vec2::ZERO);
+                }
+            }
+            out.push(w);
+        }
+        out
+    }
+
+    /// Rebuild from CSR lists and their per-pair gradients `∇W_ij` (in list order).
+    pub fn build(&mut self, lists: &NeighborLists, grads: &[Vec2]) {
+        assert_eq!(grads.len(), lists.pair_count());
+        self.prepare(lists);
+        let n = self.n;
+        self.writers(32)
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(w, mut writer)| {
+                for i in w * 32 * LANES..((w + 1) * 32 * LANES).min(n) {
+                    let r = lists.range(i);
+                    let mut g = grads[r.clone()].iter();
+                    writer.write_lane(i, &lists.indices[r], |_| *g.next().unwrap());
+                }
+            });
+    }
+
+    fn block_entries(&self, b: usize) -> std::ops::Range<usize> {
+        self.slot_start[b] as usize * LANES..self.slot_start[b + 1] as usize * LANES
+    }
+
+    /// `Σ_j s_j ∇W_ij` for the 16 particles of block `b` (x and y components per lane).
+    #[inline]
+    pub fn weighted_gradient_sums(&self, b: usize, s: &[f32]) -> ([f32; LANES], [f32; LANES]) {
+        assert!(s.len() >= self.n, "one value per particle");
+        let e = self.block_entries(b);
+        let (idx, gx, gy) = (
+            &self.index[e.clone()],
+            &self.grad_x[e.clone()],
+            &self.grad_y[e],
+        );
+        #[cfg(target_arch = "x86_64")]
+        if self.avx512 {
+            // SAFETY: the CPU has AVX-512F (checked at build), and every index is below
+            // `self.n <= s.len()` (set at build).
+            return unsafe { avx512::weighted_gradient_sums(idx, gx, gy, s) };
+        }
+        scalar_weighted_gradient_sums(idx, gx, gy, s)
+    }
+
+    /// `Σ_j v_j·∇W_ij` for the 16 particles of block `b`.
+    #[inline]
+    pub fn velocity_gradient_dots(&self, b: usize, v: &[Vec2]) -> [f32; LANES] {
+        assert!(v.len() >= self.n, "one velocity per particle");
+        let e = self.block_entries(b);
+        let (idx, gx, gy) = (
+            &self.index[e.clone()],
+            &self.grad_x[e.clone()],
+            &self.grad_y[e],
+        );
+        #[cfg(target_arch = "x86_64")]
+        if self.avx512 {
+            // SAFETY: as above; `Vec2` is two consecutive f32, so component c of particle j
+            // is element 2j + c of the flat array, below 2·v.len().
+            return unsafe { avx512::velocity_gradient_dots(idx, gx, gy, v) };
+        }
+        scalar_velocity_gradient_dots(idx, gx, gy, v)
+    }
+
+    /// Force the portable path (tests compare it with the SIMD one).
+    pub fn set_simd(&mut self, on: bool) {
+        self.avx512 = on && simd_available();
+    }
+}
+
+/// Writes the lanes of some consecutive blocks of a [`BlockedPairs`].
+pub struct BlockWriter<'a> {
+    /// Particles of the whole layout.
+    n: usize,
+    slot_start: &'a [u32],
+    /// First slot of the writer's first block.
+    base: usize,
+    index: &'a mut [u32],
+    grad_x: &'a mut [f32],
+    grad_y: &'a mut [f32],
+}
+
+impl BlockWriter<'_> {
+    /// Write particle `i`'s lane: its neighbours `list` with gradients `grad(j)` (called once
+    /// per neighbour, in list order), then padding (the particle itself, zero gradient) up to
+    /// the block's width. `i` must lie in one of the writer's blocks.
+    #[inline]
+    pub fn write_lane(&mut self, i: usize, list: &[u32], mut grad: impl FnMut(u32) -> Vec2) {
+        let (b, lane) = (i / LANES, i % LANES);
+        let first = self.slot_start[b] as usize - self.base;
+        let width = (self.slot_start[b + 1] - self.slot_start[b]) as usize;
+        assert!(
+            list.len() <= width,
+            "the blocks were laid out for other lists"
+        );
+        // In bounds for every gather: the particle itself, or particle 0 past the last one.
+        let pad = if i < self.n { i as u32 } else { 0 };
+        for s in 0..width {
+            let e = (first + s) * LANES + lane;
+            let (j, g) = match list.get(s) {
+                Some(&j) => (j, grad(j)),
+                None => (pad, Vec2::ZERO),
+            };
+            self.index[e] = j;
+            self.grad_x[e] = g.x;
+            self.grad_y[e] = g.y;
+        }
+    }
+}
+
+/// Whether this CPU runs the AVX-512 kernels.
+pub fn simd_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+fn scalar_weighted_gradient_sums(
+    idx: &[u32],
+    gx: &[f32],
+    gy: &[f32],
+    s: &[f32],
+) -> ([f32; LANES], [f32; LANES]) {
+    let mut ax = [0.0f32; LANES];
+    let mut ay = [0.0f32; LANES];
+    for ((j, x), y) in idx
+        .chunks_exact(LANES)
+        .zip(gx.chunks_exact(LANES))
+        .zip(gy.chunks_exact(LANES))
+    {
+        for l in 0..LANES {
+            let sj = s[j[l] as usize];
+            ax[l] += sj * x[l];
+            ay[l] += sj * y[l];
+        }
+    }
+    (ax, ay)
+}
+
+fn scalar_velocity_gradient_dots(idx: &[u32], gx: &[f32], gy: &[f32], v: &[Vec2]) -> [f32; LANES] {
+    let mut ax = [0.0f32; LANES];
+    let mut ay = [0.0f32; LANES];
+    for ((j, x), y) in idx
+        .chunks_exact(LANES)
+        .zip(gx.chunks_exact(LANES))
+        .zip(gy.chunks_exact(LANES))
+    {
+        for l in 0..LANES {
+            let vj = v[j[l] as usize];
+            ax[l] += vj.x * x[l];
+            ay[l] += vj.y * y[l];
+        }
+    }
+    std::array::from_fn(|l| ax[l] + ay[l])
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx512 {
+    use super::LANES;
+    use glam::Vec2;
+    use std::arch::x86_64::*;
+
+    /// # Safety
+    /// The CPU must have AVX-512F, the three slices the same length (a multiple of 16), and
+    /// every index below `s.len()`.
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn weighted_gradient_sums(
+        idx: &[u32],
+        gx: &[f32],
+        gy: &[f32],
+        s: &[f32],
+    ) -> ([f32; LANES], [f32; LANES]) {
+        let mut ax = _mm512_setzero_ps();
+        let mut ay = _mm512_setzero_ps();
+        for k in (0..idx.len()).step_by(LANES) {
+            let j = _mm512_loadu_si512(idx.as_ptr().add(k) as *const _);
+            let sj = _mm512_i32gather_ps::<4>(j, s.as_ptr());
+            ax = _mm512_fmadd_ps(sj, _mm512_loadu_ps(gx.as_ptr().add(k)), ax);
+            ay = _mm512_fmadd_ps(sj, _mm512_loadu_ps(gy.as_ptr().add(k)), ay);
+        }
+        let mut out = ([0.0f32; LANES], [0.0f32; LANES]);
+        _mm512_storeu_ps(out.0.as_mut_ptr(), ax);
+        _mm512_storeu_ps(out.1.as_mut_ptr(), ay);
+        out
+    }
+
+    /// # Safety
+    /// As [`weighted_gradient_sums`], with every index below `v.len()`.
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn velocity_gradient_dots(
+        idx: &[u32],
+        gx: &[f32],
+        gy: &[f32],
+        v: &[Vec2],
+    ) -> [f32; LANES] {
+        let base = v.as_ptr() as *const f32;
+        // Two accumulators, so that consecutive multiply-adds do not wait for each other.
+        let mut ax = _mm512_setzero_ps();
+        let mut ay = _mm512_setzero_ps();
+        for k in (0..idx.len()).step_by(LANES) {
+            let j = _mm512_loadu_si512(idx.as_ptr().add(k) as *const _);
+            // Element 2j is v_j.x; the gather's scale of 8 bytes does the doubling.
+            let vx = _mm512_i32gather_ps::<8>(j, base);
+            let vy = _mm512_i32gather_ps::<8>(j, base.add(1));
+            ax = _mm512_fmadd_ps(vx, _mm512_loadu_ps(gx.as_ptr().add(k)), ax);
+            ay = _mm512_fmadd_ps(vy, _mm512_loadu_ps(gy.as_ptr().add(k)), ay);
+        }
+        let mut out = [0.0f32; LANES];
+        _mm512_storeu_ps(out.as_mut_ptr(), _mm512_add_ps(ax, ay));
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Deterministic pseudo-random numbers in [0, 1).
+    fn unit(k: u64) -> f32 {
+        let x = k.wrapping_mul(0x9E37_79B9_7F4A_7C15).rotate_left(29);
+        (x >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    /// Lists of random lengths (0 to 20, some empty) with random neighbours and gradients.
+    fn random_lists(n: usize) -> (NeighborLists, Vec<Vec2>) {
+        let mut lists = NeighborLists::default();
+        lists.offsets.push(0);
+        let mut grads = Vec::new();
+        for i in 0..n {
+            let len = (unit(i as u64) * 21.0) as usize;
+            for k in 0..len {
+                let key = (i * 31 + k) as u64;
+                lists.indices.push((unit(key) * n as f32) as u32);
+                grads.push(Vec2::new(unit(key + 7) - 0.5, unit(key + 13) - 0.5));
+            }
+            lists.offsets.push(lists.indices.len() as u32);
+        }
+        (lists, grads)
+    }
+
+    #[test]
+    fn both_paths_give_the_per_list_sums() {
+        // 16 particles exactly, a partial last block, and none at all.
+        for n in [16usize, 1000, 0] {
+            let (lists, grads) = random_lists(n);
+            let s: Vec<f32> = (0..n).map(|k| unit(k as u64 + 99) - 0.3).collect();
+            let v: Vec<Vec2> = (0..n)
+                .map(|k| Vec2::new(unit(k as u64 + 5), unit(k as u64 + 6)) - 0.5)
+                .collect();
+            let mut blocks = BlockedPairs::default();
+            blocks.build(&lists, &grads);
+            assert_eq!(blocks.blocks(), n.div_ceil(LANES));
+            for simd in [false, true] {
+                blocks.set_simd(simd);
+                for b in 0..blocks.blocks() {
+                    let (sx, sy) = blocks.weighted_gradient_sums(b, &s);
+                    let dots = blocks.velocity_gradient_dots(b, &v);
+                    for l in 0..LANES {
+                        let i = b * LANES + l;
+                        if i >= n {
+                            continue;
+                        }
+                        let r = lists.range(i);
+                        let (mut want, mut dot) = (glam::DVec2::ZERO, 0.0f64);
+                        for (&j, g) in lists.indices[r.clone()].iter().zip(&grads[r]) {
+                            want += (s[j as usize] * *g).as_dvec2();
+                            dot += v[j as usize].dot(*g) as f64;
+                        }
+                        let got = glam::DVec2::new(sx[l] as f64, sy[l] as f64);
+                        assert!(
+                            (got - want).length() < 1e-5,
+                            "n {n}, simd {simd}, particle {i}: {got} against {want}"
+                        );
+                        assert!(
+                            (dots[l] as f64 - dot).abs() < 1e-5,
+                            "n {n}, simd {simd}, particle {i}: {} against {dot}",
+                            dots[l]
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn padding_stays_inside_the_particle_arrays() {
+        let (lists, grads) = random_lists(100);
+        let mut blocks = BlockedPairs::default();
+        blocks.build(&lists, &grads);
+        // 7 blocks; every block is as wide as its longest list.
+        assert_eq!(blocks.blocks(), 7);
+        assert!(blocks.index.iter().all(|&j| (j as usize) < 100));
+        let real = lists.pair_count();
+        assert!(blocks.entries() >= real);
+        let padded = blocks.grad_x.iter().zip(&blocks.grad_y);
+        assert_eq!(
+            padded.filter(|(x, y)| **x != 0.0 || **y != 0.0).count(),
+            grads.iter().filter(|g| **g != Vec2::ZERO).count()
+        );
+    }
+
+    #[test]
+    #[should_panic(expected = "one value per particle")]
+    fn a_short_value_array_is_refused() {
+        let (lists, grads) = random_lists(40);
+        let mut blocks = BlockedPairs::default();
+        blocks.build(&lists, &grads);
+        blocks.weighted_gradient_sums(0, &[0.0; 39]);
+    }
+}
