@@ -17,6 +17,7 @@
 use glam::Vec2;
 use rayon::prelude::*;
 
+use crate::kernel::CubicSpline;
 use crate::neighbors::NeighborLists;
 
 /// Particles per block: one AVX-512 vector of f32.
@@ -36,6 +37,8 @@ pub struct BlockedPairs {
     grad_y: Vec<f32>,
     /// Whether the CPU runs the AVX-512 kernels.
     avx512: bool,
+    /// Set by [`Self::set_simd`]: stay on the portable path even where AVX-512 exists.
+    portable_only: bool,
 }
 
 impl BlockedPairs {
@@ -54,7 +57,7 @@ impl BlockedPairs {
     pub fn prepare(&mut self, lists: &NeighborLists) {
         let n = lists.len();
         self.n = n;
-        self.avx512 = simd_available();
+        self.avx512 = !self.portable_only && simd_available();
         let blocks = n.div_ceil(LANES);
         self.slot_start.clear();
         self.slot_start.push(0);
@@ -93,6 +96,7 @@ impl BlockedPairs {
             (idx, gx, gy) = (rest_i, rest_x, rest_y);
             let mut w = BlockWriter {
                 n,
+                avx512: self.avx512,
                 slot_start: &self.slot_start,
                 base: self.slot_start[first] as usize,
                 index: a,
@@ -168,8 +172,10 @@ impl BlockedPairs {
         scalar_velocity_gradient_dots(idx, gx, gy, v)
     }
 
-    /// Force the portable path (tests compare it with the SIMD one).
+    /// Use the SIMD kernels where the CPU has them (the default), or force the portable path
+    /// (tests compare the two).
     pub fn set_simd(&mut self, on: bool) {
+        self.portable_only = !on;
         self.avx512 = on && simd_available();
     }
 }
@@ -178,6 +184,8 @@ impl BlockedPairs {
 pub struct BlockWriter<'a> {
     /// Particles of the whole layout.
     n: usize,
+    /// Whether to run the AVX-512 kernels.
+    avx512: bool,
     slot_start: &'a [u32],
     /// First slot of the writer's first block.
     base: usize,
@@ -212,6 +220,97 @@ impl BlockWriter<'_> {
             self.grad_y[e] = g.y;
         }
     }
+}
+
+impl BlockWriter<'_> {
+    /// Fill block `b` from the fluid lists and positions: the neighbour indices, and
+    /// `∇W(x_i − x_j)` for every pair, evaluated 16 pairs at a time where the CPU allows.
+    /// Returns the per-lane sums of the density pass over the fluid neighbours, started from
+    /// `start` (the particle's own `V·W(0)`): the same expressions, in the same order, as
+    /// summing `V·W_ij`, `V·∇W_ij` and `|V·∇W_ij|²` pair by pair with
+    /// [`CubicSpline::w_and_grad`], so both paths give identical bits.
+    pub fn fill_block(
+        &mut self,
+        b: usize,
+        lists: &NeighborLists,
+        pos: &[Vec2],
+        kernel: &CubicSpline,
+        volume: f32,
+        start: f32,
+    ) -> FluidSums {
+        assert!(pos.len() >= self.n && lists.len() == self.n);
+        let first = self.slot_start[b] as usize - self.base;
+        let width = (self.slot_start[b + 1] - self.slot_start[b]) as usize;
+        let e = first * LANES..(first + width) * LANES;
+        let mut lens = [0u32; LANES];
+        let mut xi = [0.0f32; LANES];
+        let mut yi = [0.0f32; LANES];
+        for lane in 0..LANES {
+            let i = b * LANES + lane;
+            let list = if i < self.n { lists.of(i) } else { &[][..] };
+            assert!(
+                list.len() <= width,
+                "the blocks were laid out for other lists"
+            );
+            lens[lane] = list.len() as u32;
+            if i < self.n {
+                (xi[lane], yi[lane]) = (pos[i].x, pos[i].y);
+            }
+            let pad = if i < self.n { i as u32 } else { 0 };
+            for s in 0..width {
+                self.index[e.start + s * LANES + lane] = list.get(s).copied().unwrap_or(pad);
+            }
+        }
+        let (idx, gx, gy) = (
+            &self.index[e.clone()],
+            &mut self.grad_x[e.clone()],
+            &mut self.grad_y[e],
+        );
+        #[cfg(target_arch = "x86_64")]
+        if self.avx512 {
+            // SAFETY: AVX-512F is present (checked when laid out), the slices hold `width`
+            // slots, and every index is below `self.n <= pos.len()`.
+            return unsafe {
+                avx512::fluid_sums(idx, gx, gy, &lens, &xi, &yi, pos, kernel, volume, start)
+            };
+        }
+        let mut sums = FluidSums {
+            density: [start; LANES],
+            ..Default::default()
+        };
+        for s in 0..width {
+            for lane in 0..LANES {
+                let k = s * LANES + lane;
+                let g = if (s as u32) < lens[lane] {
+                    let xj = pos[idx[k] as usize];
+                    let (w, g) = kernel.w_and_grad(Vec2::new(xi[lane], yi[lane]) - xj);
+                    sums.density[lane] += volume * w;
+                    let vg = volume * g;
+                    sums.grad_x[lane] += vg.x;
+                    sums.grad_y[lane] += vg.y;
+                    sums.grad_sq[lane] += vg.length_squared();
+                    g
+                } else {
+                    Vec2::ZERO
+                };
+                gx[k] = g.x;
+                gy[k] = g.y;
+            }
+        }
+        sums
+    }
+}
+
+/// Per-lane sums of the density pass over a block's fluid neighbours.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FluidSums {
+    /// `V·W(0) + Σ_j V·W_ij`.
+    pub density: [f32; LANES],
+    /// `Σ_j V·∇W_ij`, x and y.
+    pub grad_x: [f32; LANES],
+    pub grad_y: [f32; LANES],
+    /// `Σ_j |V·∇W_ij|²`.
+    pub grad_sq: [f32; LANES],
 }
 
 /// Whether this CPU runs the AVX-512 kernels.
@@ -267,9 +366,90 @@ fn scalar_velocity_gradient_dots(idx: &[u32], gx: &[f32], gy: &[f32], v: &[Vec2]
 
 #[cfg(target_arch = "x86_64")]
 mod avx512 {
-    use super::LANES;
+    use super::{FluidSums, LANES};
+    use crate::kernel::CubicSpline;
     use glam::Vec2;
     use std::arch::x86_64::*;
+
+    /// [`super::BlockWriter::fill_block`]'s pair loop, 16 lanes at a time. Multiplies and adds
+    /// are separate (no fused multiply-add) and in the scalar code's order, so every result
+    /// rounds exactly as [`CubicSpline::w_and_grad`] and the scalar sums do.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F, the three slices the same length (a multiple of 16), and
+    /// every index below `pos.len()`.
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn fluid_sums(
+        idx: &[u32],
+        gx: &mut [f32],
+        gy: &mut [f32],
+        lens: &[u32; LANES],
+        xi: &[f32; LANES],
+        yi: &[f32; LANES],
+        pos: &[Vec2],
+        kernel: &CubicSpline,
+        volume: f32,
+        start: f32,
+    ) -> FluidSums {
+        let (k, l, inv_h) = kernel.constants();
+        let base = pos.as_ptr() as *const f32;
+        let (xi, yi) = (_mm512_loadu_ps(xi.as_ptr()), _mm512_loadu_ps(yi.as_ptr()));
+        let lens = _mm512_loadu_si512(lens.as_ptr() as *const _);
+        let c = |v: f32| _mm512_set1_ps(v);
+        let (mut dens, mut sx, mut sy, mut sq) = (
+            c(start),
+            _mm512_setzero_ps(),
+            _mm512_setzero_ps(),
+            _mm512_setzero_ps(),
+        );
+        for (s, kk) in (0..idx.len()).step_by(LANES).enumerate() {
+            let j = _mm512_loadu_si512(idx.as_ptr().add(kk) as *const _);
+            let rx = _mm512_sub_ps(xi, _mm512_i32gather_ps::<8>(j, base));
+            let ry = _mm512_sub_ps(yi, _mm512_i32gather_ps::<8>(j, base.add(1)));
+            let rl = _mm512_sqrt_ps(_mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry)));
+            let q = _mm512_mul_ps(rl, c(inv_h));
+            let pair = _mm512_cmplt_epu32_mask(_mm512_set1_epi32(s as i32), lens);
+            let inner = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(q, c(0.5));
+            let inside = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, c(1.0));
+            // W: k·(6q³ − 6q² + 1) inside q ≤ ½, 2k·(1 − q)³ up to 1, 0 beyond.
+            let q2 = _mm512_mul_ps(q, q);
+            let six_q2 = _mm512_mul_ps(c(6.0), q2);
+            let w_in = _mm512_mul_ps(
+                c(k),
+                _mm512_add_ps(_mm512_sub_ps(_mm512_mul_ps(six_q2, q), six_q2), c(1.0)),
+            );
+            let a = _mm512_sub_ps(c(1.0), q);
+            let w_out = _mm512_mul_ps(_mm512_mul_ps(_mm512_mul_ps(c(2.0 * k), a), a), a);
+            let w = _mm512_maskz_mov_ps(inside, _mm512_mask_blend_ps(inner, w_out, w_in));
+            // dW/dq: l·q·(3q − 2) inside q ≤ ½, −l·(1 − q)² beyond.
+            let d_in = _mm512_mul_ps(
+                _mm512_mul_ps(c(l), q),
+                _mm512_sub_ps(_mm512_mul_ps(c(3.0), q), c(2.0)),
+            );
+            let d_out = _mm512_mul_ps(_mm512_mul_ps(c(-l), a), a);
+            let d = _mm512_mask_blend_ps(inner, d_out, d_in);
+            // ∇W = r·(dW/dq·(1/h)/|r|) where 1e-9 < |r| and q < 1, else 0.
+            let has_grad = inside & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(rl, c(1.0e-9)) & pair;
+            let scale = _mm512_maskz_div_ps(has_grad, _mm512_mul_ps(d, c(inv_h)), rl);
+            let (gxv, gyv) = (_mm512_mul_ps(rx, scale), _mm512_mul_ps(ry, scale));
+            _mm512_storeu_ps(gx.as_mut_ptr().add(kk), gxv);
+            _mm512_storeu_ps(gy.as_mut_ptr().add(kk), gyv);
+            // Sums over real pairs only (padding lanes keep their value).
+            dens = _mm512_mask_add_ps(dens, pair, dens, _mm512_mul_ps(c(volume), w));
+            let (vx, vy) = (_mm512_mul_ps(c(volume), gxv), _mm512_mul_ps(c(volume), gyv));
+            sx = _mm512_mask_add_ps(sx, pair, sx, vx);
+            sy = _mm512_mask_add_ps(sy, pair, sy, vy);
+            let len2 = _mm512_add_ps(_mm512_mul_ps(vx, vx), _mm512_mul_ps(vy, vy));
+            sq = _mm512_mask_add_ps(sq, pair, sq, len2);
+        }
+        let mut out = FluidSums::default();
+        _mm512_storeu_ps(out.density.as_mut_ptr(), dens);
+        _mm512_storeu_ps(out.grad_x.as_mut_ptr(), sx);
+        _mm512_storeu_ps(out.grad_y.as_mut_ptr(), sy);
+        _mm512_storeu_ps(out.grad_sq.as_mut_ptr(), sq);
+        out
+    }
 
     /// # Safety
     /// The CPU must have AVX-512F, the three slices the same length (a multiple of 16), and

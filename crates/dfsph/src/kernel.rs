@@ -66,6 +66,13 @@ impl CubicSpline {
         }
     }
 
+    /// `(k, l, 1/h)`: the constants of [`Self::w`] and of `dW/dq`, for the SIMD density pass,
+    /// which evaluates the same expressions 16 pairs at a time.
+    #[inline]
+    pub(crate) fn constants(&self) -> (f32, f32, f32) {
+        (self.k, self.l, self.inv_h)
+    }
+
     /// `W(0)`, the self-contribution to a particle's own sums.
     #[inline]
     pub fn w_zero(&self) -> f32 {
