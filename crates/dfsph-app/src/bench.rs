@@ -246,6 +246,10 @@ pub struct Row {
     pub cpu: String,
     /// SIMD features the binary was compiled for (`-C target-cpu`), e.g. `sse2` or `avx2`.
     pub compiled_simd: String,
+    /// What the solver's pair loops run on this CPU: `avx512f` (detected at run time) or
+    /// `portable`. Empty in rows saved before it was recorded.
+    #[serde(default)]
+    pub runtime_simd: String,
     /// Wall seconds of every run of this row; the row's other numbers are the median run's.
     pub wall_seconds_runs: Vec<f64>,
 }

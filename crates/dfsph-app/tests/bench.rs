@@ -72,6 +72,12 @@ fn quick_bench_writes_sane_json_rows() {
         assert!(front > 0.9 && front < 4.0, "front {front}");
         assert_eq!(num("non_finite"), 0.0);
         assert_eq!(num("leaked"), 0.0);
+        let expected = if dfsph::blocked::simd_available() {
+            "avx512f"
+        } else {
+            "portable"
+        };
+        assert_eq!(row["runtime_simd"], expected, "{row}");
     }
     let svg = std::fs::read_to_string(&plot).unwrap();
     assert!(

@@ -128,6 +128,18 @@ fn passes(c: &mut Criterion) {
             "{name}: {n} fluid particles, {:.2} neighbours per particle (fluid + boundary)",
             pairs / n as f64
         );
+        eprintln!(
+            "{name}: SIMD blocks hold {} entries for {} fluid pairs ({:.1} % padding); AVX-512 {}",
+            s.pair_cache.blocks.entries(),
+            s.fluid_lists.pair_count(),
+            100.0
+                * (s.pair_cache.blocks.entries() as f64 / s.fluid_lists.pair_count() as f64 - 1.0),
+            if dfsph::blocked::simd_available() {
+                "on"
+            } else {
+                "off (portable loop)"
+            }
+        );
 
         let mut g = c.benchmark_group("neighbors");
         g.throughput(Throughput::Elements(n));

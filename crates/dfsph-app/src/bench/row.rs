@@ -150,6 +150,11 @@ pub fn base_row(code: Code, args: &RowArgs, n: usize, n_boundary: usize) -> Row 
         float: "f32".into(),
         cpu: cpu_model(),
         compiled_simd: compiled_simd(),
+        runtime_simd: if dfsph::blocked::simd_available() {
+            "avx512f".into()
+        } else {
+            "portable".into()
+        },
         wall_seconds_runs: Vec::new(),
     }
 }
