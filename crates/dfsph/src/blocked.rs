@@ -130,20 +130,21 @@ impl BlockedPairs {
             });
     }
 
-    fn block_entries(&self, b: usize) -> std::ops::Range<usize> {
-        self.slot_start[b] as usize * LANES..self.slot_start[b + 1] as usize * LANES
+    /// Block `b`'s indices and gradients, slot by slot.
+    fn block(&self, b: usize) -> (&[u32], &[f32], &[f32]) {
+        let e = self.slot_start[b] as usize * LANES..self.slot_start[b + 1] as usize * LANES;
+        (
+            &self.index[e.clone()],
+            &self.grad_x[e.clone()],
+            &self.grad_y[e],
+        )
     }
 
     /// `Σ_j s_j ∇W_ij` for the 16 particles of block `b` (x and y components per lane).
     #[inline]
     pub fn weighted_gradient_sums(&self, b: usize, s: &[f32]) -> ([f32; LANES], [f32; LANES]) {
         assert!(s.len() >= self.n, "one value per particle");
-        let e = self.block_entries(b);
-        let (idx, gx, gy) = (
-            &self.index[e.clone()],
-            &self.grad_x[e.clone()],
-            &self.grad_y[e],
-        );
+        let (idx, gx, gy) = self.block(b);
         #[cfg(target_arch = "x86_64")]
         if self.avx512 {
             // SAFETY: the CPU has AVX-512F (checked at build), and every index is below
@@ -157,12 +158,7 @@ impl BlockedPairs {
     #[inline]
     pub fn velocity_gradient_dots(&self, b: usize, v: &[Vec2]) -> [f32; LANES] {
         assert!(v.len() >= self.n, "one velocity per particle");
-        let e = self.block_entries(b);
-        let (idx, gx, gy) = (
-            &self.index[e.clone()],
-            &self.grad_x[e.clone()],
-            &self.grad_y[e],
-        );
+        let (idx, gx, gy) = self.block(b);
         #[cfg(target_arch = "x86_64")]
         if self.avx512 {
             // SAFETY: as above; `Vec2` is two consecutive f32, so component c of particle j
@@ -325,6 +321,21 @@ pub fn simd_available() -> bool {
     }
 }
 
+/// Calls `pair(lane, j, ∇W)` for every slot of a block, slot by slot: the portable path's
+/// walk, in the same order as the SIMD one.
+#[inline]
+fn for_each_slot(idx: &[u32], gx: &[f32], gy: &[f32], mut pair: impl FnMut(usize, usize, Vec2)) {
+    for ((j, x), y) in idx
+        .chunks_exact(LANES)
+        .zip(gx.chunks_exact(LANES))
+        .zip(gy.chunks_exact(LANES))
+    {
+        for l in 0..LANES {
+            pair(l, j[l] as usize, Vec2::new(x[l], y[l]));
+        }
+    }
+}
+
 fn scalar_weighted_gradient_sums(
     idx: &[u32],
     gx: &[f32],
@@ -333,34 +344,20 @@ fn scalar_weighted_gradient_sums(
 ) -> ([f32; LANES], [f32; LANES]) {
     let mut ax = [0.0f32; LANES];
     let mut ay = [0.0f32; LANES];
-    for ((j, x), y) in idx
-        .chunks_exact(LANES)
-        .zip(gx.chunks_exact(LANES))
-        .zip(gy.chunks_exact(LANES))
-    {
-        for l in 0..LANES {
-            let sj = s[j[l] as usize];
-            ax[l] += sj * x[l];
-            ay[l] += sj * y[l];
-        }
-    }
+    for_each_slot(idx, gx, gy, |l, j, g| {
+        ax[l] += s[j] * g.x;
+        ay[l] += s[j] * g.y;
+    });
     (ax, ay)
 }
 
 fn scalar_velocity_gradient_dots(idx: &[u32], gx: &[f32], gy: &[f32], v: &[Vec2]) -> [f32; LANES] {
     let mut ax = [0.0f32; LANES];
     let mut ay = [0.0f32; LANES];
-    for ((j, x), y) in idx
-        .chunks_exact(LANES)
-        .zip(gx.chunks_exact(LANES))
-        .zip(gy.chunks_exact(LANES))
-    {
-        for l in 0..LANES {
-            let vj = v[j[l] as usize];
-            ax[l] += vj.x * x[l];
-            ay[l] += vj.y * y[l];
-        }
-    }
+    for_each_slot(idx, gx, gy, |l, j, g| {
+        ax[l] += v[j].x * g.x;
+        ay[l] += v[j].y * g.y;
+    });
     std::array::from_fn(|l| ax[l] + ay[l])
 }
 
