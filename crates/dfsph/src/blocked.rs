@@ -7,7 +7,7 @@
 //! cell, so their lists have similar lengths) are walked together: slot `k` of a block holds
 //! the `k`-th neighbour of each of its 16 particles, so one AVX-512 gather reads 16 neighbour
 //! values and one multiply-add handles 16 pairs. Shorter lists are padded with the particle's
-//! own index and a zero gradient (about 13 % padding on the dam break, BENCHMARK.md).
+//! own index and a zero gradient (9 % padding at 20k and 5 % at 80k on the dam break).
 //!
 //! Sums run over a particle's slots in list order in both the SIMD and the scalar path, so the
 //! pair sums are deterministic; the two paths differ only in the rounding of multiply-adds.
@@ -77,7 +77,8 @@ impl BlockedPairs {
     }
 
     /// One writer per `blocks_per_writer` consecutive blocks, owning their entries, to fill in
-    /// parallel after [`Self::prepare`]. The lanes past the last particle are padded here.
+    /// parallel after [`Self::prepare`]. Every lane of every block must be written, the lanes
+    /// past the last particle included (with an empty list).
     pub fn writers(&mut self, blocks_per_writer: usize) -> Vec<BlockWriter<'_>> {
         let blocks = self.blocks();
         let n = self.n;
@@ -94,7 +95,7 @@ impl BlockedPairs {
             let (bx, rest_x) = std::mem::take(&mut gx).split_at_mut(len);
             let (by, rest_y) = std::mem::take(&mut gy).split_at_mut(len);
             (idx, gx, gy) = (rest_i, rest_x, rest_y);
-            let mut w = BlockWriter {
+            out.push(BlockWriter {
                 n,
                 avx512: self.avx512,
                 slot_start: &self.slot_start,
@@ -102,13 +103,7 @@ impl BlockedPairs {
                 index: a,
                 grad_x: bx,
                 grad_y: by,
-            };
-            if last == blocks {
-                for i in n..last * LANES {
-                    w.write_lane(i, &[], |_| Vec2::ZERO);
-                }
-            }
-            out.push(w);
+            });
         }
         out
     }
@@ -117,13 +112,13 @@ impl BlockedPairs {
     pub fn build(&mut self, lists: &NeighborLists, grads: &[Vec2]) {
         assert_eq!(grads.len(), lists.pair_count());
         self.prepare(lists);
-        let n = self.n;
+        let (n, lanes) = (self.n, self.blocks() * LANES);
         self.writers(32)
             .into_par_iter()
             .enumerate()
             .for_each(|(w, mut writer)| {
-                for i in w * 32 * LANES..((w + 1) * 32 * LANES).min(n) {
-                    let r = lists.range(i);
+                for i in w * 32 * LANES..((w + 1) * 32 * LANES).min(lanes) {
+                    let r = if i < n { lists.range(i) } else { 0..0 };
                     let mut g = grads[r.clone()].iter();
                     writer.write_lane(i, &lists.indices[r], |_| *g.next().unwrap());
                 }
@@ -147,8 +142,8 @@ impl BlockedPairs {
         let (idx, gx, gy) = self.block(b);
         #[cfg(target_arch = "x86_64")]
         if self.avx512 {
-            // SAFETY: the CPU has AVX-512F (checked at build), and every index is below
-            // `self.n <= s.len()` (set at build).
+            // SAFETY: the CPU has AVX-512F (checked in `prepare`), and every index is below
+            // `self.n <= s.len()` (checked when written, `BlockWriter::lane_indices`).
             return unsafe { avx512::weighted_gradient_sums(idx, gx, gy, s) };
         }
         scalar_weighted_gradient_sums(idx, gx, gy, s)
@@ -191,34 +186,52 @@ pub struct BlockWriter<'a> {
 }
 
 impl BlockWriter<'_> {
+    /// Block `b`'s entries within the writer's arrays.
+    fn entries(&self, b: usize) -> std::ops::Range<usize> {
+        let first = self.slot_start[b] as usize - self.base;
+        let width = (self.slot_start[b + 1] - self.slot_start[b]) as usize;
+        first * LANES..(first + width) * LANES
+    }
+
+    /// Write particle `i`'s neighbour indices `list` into its lane, padded up to the block's
+    /// width with the particle itself (particle 0 for a lane past the last particle). Every
+    /// index is checked against the particle count here, once, so that the gathers that read
+    /// through these indices stay in bounds.
+    fn lane_indices(&mut self, i: usize, list: &[u32]) {
+        let e = self.entries(i / LANES);
+        let lane = i % LANES;
+        assert!(
+            list.len() * LANES <= e.len(),
+            "the blocks were laid out for other lists"
+        );
+        assert!(
+            list.iter().all(|&j| (j as usize) < self.n),
+            "neighbour index out of range"
+        );
+        let pad = if i < self.n { i as u32 } else { 0 };
+        for (s, slot) in self.index[e].chunks_exact_mut(LANES).enumerate() {
+            slot[lane] = list.get(s).copied().unwrap_or(pad);
+        }
+    }
+
     /// Write particle `i`'s lane: its neighbours `list` with gradients `grad(j)` (called once
     /// per neighbour, in list order), then padding (the particle itself, zero gradient) up to
     /// the block's width. `i` must lie in one of the writer's blocks.
     #[inline]
     pub fn write_lane(&mut self, i: usize, list: &[u32], mut grad: impl FnMut(u32) -> Vec2) {
-        let (b, lane) = (i / LANES, i % LANES);
-        let first = self.slot_start[b] as usize - self.base;
-        let width = (self.slot_start[b + 1] - self.slot_start[b]) as usize;
-        assert!(
-            list.len() <= width,
-            "the blocks were laid out for other lists"
-        );
-        // In bounds for every gather: the particle itself, or particle 0 past the last one.
-        let pad = if i < self.n { i as u32 } else { 0 };
-        for s in 0..width {
-            let e = (first + s) * LANES + lane;
-            let (j, g) = match list.get(s) {
-                Some(&j) => (j, grad(j)),
-                None => (pad, Vec2::ZERO),
-            };
-            self.index[e] = j;
-            self.grad_x[e] = g.x;
-            self.grad_y[e] = g.y;
+        self.lane_indices(i, list);
+        let e = self.entries(i / LANES);
+        let lane = i % LANES;
+        let slots = self.grad_x[e.clone()]
+            .chunks_exact_mut(LANES)
+            .zip(self.grad_y[e].chunks_exact_mut(LANES));
+        for (s, (x, y)) in slots.enumerate() {
+            let g = list.get(s).map_or(Vec2::ZERO, |&j| grad(j));
+            x[lane] = g.x;
+            y[lane] = g.y;
         }
     }
-}
 
-impl BlockWriter<'_> {
     /// Fill block `b` from the fluid lists and positions: the neighbour indices, and
     /// `∇W(x_i − x_j)` for every pair, evaluated 16 pairs at a time where the CPU allows.
     /// Returns the per-lane sums of the density pass over the fluid neighbours, started from
@@ -235,26 +248,18 @@ impl BlockWriter<'_> {
         start: f32,
     ) -> FluidSums {
         assert!(pos.len() >= self.n && lists.len() == self.n);
-        let first = self.slot_start[b] as usize - self.base;
-        let width = (self.slot_start[b + 1] - self.slot_start[b]) as usize;
-        let e = first * LANES..(first + width) * LANES;
+        let e = self.entries(b);
+        let width = e.len() / LANES;
         let mut lens = [0u32; LANES];
         let mut xi = [0.0f32; LANES];
         let mut yi = [0.0f32; LANES];
         for lane in 0..LANES {
             let i = b * LANES + lane;
             let list = if i < self.n { lists.of(i) } else { &[][..] };
-            assert!(
-                list.len() <= width,
-                "the blocks were laid out for other lists"
-            );
+            self.lane_indices(i, list);
             lens[lane] = list.len() as u32;
             if i < self.n {
                 (xi[lane], yi[lane]) = (pos[i].x, pos[i].y);
-            }
-            let pad = if i < self.n { i as u32 } else { 0 };
-            for s in 0..width {
-                self.index[e.start + s * LANES + lane] = list.get(s).copied().unwrap_or(pad);
             }
         }
         let (idx, gx, gy) = (
@@ -264,8 +269,8 @@ impl BlockWriter<'_> {
         );
         #[cfg(target_arch = "x86_64")]
         if self.avx512 {
-            // SAFETY: AVX-512F is present (checked when laid out), the slices hold `width`
-            // slots, and every index is below `self.n <= pos.len()`.
+            // SAFETY: AVX-512F is present (checked in `prepare`), the slices hold `width`
+            // slots, and every index is below `self.n <= pos.len()` (`lane_indices`).
             return unsafe {
                 avx512::fluid_sums(idx, gx, gy, &lens, &xi, &yi, pos, kernel, volume, start)
             };
@@ -585,6 +590,17 @@ mod tests {
             padded.filter(|(x, y)| **x != 0.0 || **y != 0.0).count(),
             grads.iter().filter(|g| **g != Vec2::ZERO).count()
         );
+    }
+
+    #[test]
+    #[should_panic(expected = "neighbour index out of range")]
+    fn a_neighbour_index_past_the_particles_is_refused() {
+        // The gathers read through these indices unchecked, so they are checked when written.
+        let (mut lists, grads) = random_lists(40);
+        let last = lists.indices.len() - 1;
+        lists.indices[last] = 40;
+        let mut blocks = BlockedPairs::default();
+        blocks.build(&lists, &grads);
     }
 
     #[test]

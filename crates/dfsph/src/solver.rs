@@ -699,6 +699,7 @@ mod tests {
         }
         assert!(wall_pairs > 50, "the walls must take part: {wall_pairs}");
     }
+
     #[test]
     fn simd_and_portable_density_passes_agree_bit_for_bit() {
         // The AVX-512 pair loop evaluates the kernel with the scalar code's operations in the
