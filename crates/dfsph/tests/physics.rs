@@ -179,17 +179,20 @@ fn a_still_tank_under_a_one_second_cap_steps_by_gravity() {
     // Nothing moves at t = 0, so the velocity CFL alone would take the whole 1 s cap (and
     // its retries 0.5 s down to 62 ms): the water would drop metres in one step. The gravity
     // bound √(λ·d/|g|) takes over. It bounds the motion, not the pressure solve: a 45 ms step
-    // at r = 2.5 cm is still far too long for it (docs/scenes.md), so only finiteness is
-    // asked of the steps that follow.
+    // at r = 2.5 cm is still far too long for it (docs/scenes.md; the step may be redone
+    // shorter for its unseen compression), so only finiteness is asked of the steps that
+    // follow.
     let mut s = coarse("hydrostatic", 0.025);
     s.time_step.max = 1.0;
     let bound = (s.time_step.cfl * s.spacing() / 9.81).sqrt();
     let mut sim = Simulation::new(&s).unwrap();
     let first = *sim.step();
+    let attempted = first.dt * f64::from(1u32 << first.retries);
     assert!(
-        first.dt <= bound * 1.0001 && first.dt >= 0.5 * bound,
-        "first Δt {} against the gravity bound {bound}",
-        first.dt
+        (attempted - bound).abs() <= 1.0e-4 * bound,
+        "first Δt {} after {} retries, against the gravity bound {bound}",
+        first.dt,
+        first.retries
     );
     for _ in 0..20 {
         let st = *sim.step();
@@ -310,13 +313,36 @@ fn a_very_viscous_tank_at_rest_stays_at_rest() {
 }
 
 #[test]
+fn a_deep_column_at_the_benchmark_time_step_does_not_burst() {
+    // The narrow 400-layer column below at BENCHMARK.md's solver settings (tolerance 0.01 %,
+    // CFL 0.2, Δt up to 5 ms), 0.3 s. The first steps are long enough that the density solve's
+    // linear prediction misses several percent of compression in the bottom rows, every step;
+    // before steps checked their linearisation (`solver::unseen_compression`) the rows burst:
+    // 19.5 m/s and 431 J/m. With the check: 1.8 m/s and 10 J/m. (Still not at rest; see the
+    // ignored test below.)
+    let s = Scene::from_json(
+        r#"{"particle_radius": 0.0025, "tank": {"min": [0, 0], "max": [0.1, 2.5]},
+            "fluid": [{"min": [0, 0], "max": [0.1, 2.0]}],
+            "solver": {"density_tolerance_pct": 0.01},
+            "time_step": {"cfl": 0.2, "max": 0.005}}"#,
+    )
+    .unwrap();
+    let mut sim = Simulation::new(&s).unwrap();
+    while sim.time() < 0.3 {
+        let st = *sim.step();
+        assert_eq!(st.clamped + st.non_finite, 0, "{st:?}");
+        assert!(st.max_speed < 3.0 && st.kinetic_energy < 40.0, "{st:?}");
+    }
+}
+
+#[test]
 #[ignore = "known failure, the target of the next solver work: see docs/deep-columns.md"]
 fn a_deep_narrow_column_stays_at_rest() {
     // 20 x 400 particles (0.1 m x 2 m at d = 5 mm) at rest between two walls. The exact
     // answer is no motion at all. The Jacobi density solve cannot carry pressure up 400
     // layers, so the column falls into its bottom rows: 35 m/s and particles through the
-    // floor within 0.3 s (measured 2026-11-21). The 80k dam break and deep water poured in
-    // `dfsph2d stress` fail the same way.
+    // floor within 0.3 s (measured 2026-11-21). Since steps check their linearisation it no
+    // longer bursts (0.8–1.1 m/s, no clamps), but it sloshes instead of resting.
     // A hydrostatic column: anything faster than 1 % of sqrt(gH) is spurious.
     run_column_at_fine_resolution([0.1, 2.5], [0.1, 2.0], 0.3, 0.01 * (9.81f64 * 2.0).sqrt());
 }
