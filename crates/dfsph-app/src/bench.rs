@@ -238,6 +238,11 @@ pub struct Row {
     pub leaked: u64,
     /// Particles that became NaN/infinite. Must be 0.
     pub non_finite: u64,
+    /// Attempts redone with half the Δt, summed over the steps (dfsph2d; each costs one more
+    /// solve, and the steps after it start shorter). 0 for salva2d and in rows saved before
+    /// it was recorded.
+    #[serde(default)]
+    pub retries: u64,
     /// XSPH viscosity coefficient.
     pub xsph: f64,
     /// Float type of the solver.

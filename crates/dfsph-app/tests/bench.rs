@@ -72,6 +72,7 @@ fn quick_bench_writes_sane_json_rows() {
         assert!(front > 0.9 && front < 4.0, "front {front}");
         assert_eq!(num("non_finite"), 0.0);
         assert_eq!(num("leaked"), 0.0);
+        assert!(num("retries") >= 0.0, "retries are reported: {row}");
         let expected = if dfsph::blocked::simd_available() {
             "avx512f"
         } else {

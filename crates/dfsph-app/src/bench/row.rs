@@ -72,6 +72,7 @@ fn run_dfsph(args: &RowArgs) -> Result<Row, String> {
     let mut progress = Progress::new(Code::Dfsph2d, &args.case, args.until);
 
     let (mut density_its, mut divergence_its, mut steps) = (0u64, 0u64, 0u64);
+    let mut retries = 0u64;
     let mut front_at_check = None;
     let mut untimed = Duration::ZERO;
     let start = Instant::now();
@@ -79,6 +80,7 @@ fn run_dfsph(args: &RowArgs) -> Result<Row, String> {
         let s = sim.step();
         density_its += s.density_iterations as u64;
         divergence_its += s.divergence_iterations as u64;
+        retries += s.retries as u64;
         steps += 1;
         if front_at_check.is_none() && s.time >= FRONT_CHECK_TIME {
             let t = Instant::now();
@@ -102,6 +104,7 @@ fn run_dfsph(args: &RowArgs) -> Result<Row, String> {
     row.front_x_at_0_4 = front_at_check;
     row.leaked = sim.total_clamped();
     row.non_finite = sim.total_non_finite();
+    row.retries = retries;
     row.finish_timing(wall, steps);
     Ok(row)
 }
@@ -146,6 +149,7 @@ pub fn base_row(code: Code, args: &RowArgs, n: usize, n_boundary: usize) -> Row 
         front_x_at_0_4: None,
         leaked: 0,
         non_finite: 0,
+        retries: 0,
         xsph: XSPH,
         float: "f32".into(),
         cpu: cpu_model(),
