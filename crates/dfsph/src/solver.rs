@@ -549,20 +549,23 @@ pub fn unseen_compression(
                 }
                 let xi = pos[i] + dt * vel[i];
                 let mut advected = self_w;
-                for &j in nb.fluid.of(i) {
-                    let r = xi - (pos[j as usize] + dt * vel[j as usize]);
-                    let r2 = r.length_squared();
+                // `V·W` of a neighbour at `x` moving with `v`, fluid or wall alike.
+                let mut add = |x: Vec2, v: Vec2, vol: f32| {
+                    let r2 = (xi - (x + dt * v)).length_squared();
                     if r2 < support2 {
-                        advected += volume * kernel.w(r2.sqrt());
+                        advected += vol * kernel.w(r2.sqrt());
                     }
+                };
+                for &j in nb.fluid.of(i) {
+                    add(pos[j as usize], vel[j as usize], volume);
                 }
                 for &w in nb.boundary.of(i) {
                     let w = w as usize;
-                    let r = xi - (boundary.position[w] + dt * boundary.velocity[w]);
-                    let r2 = r.length_squared();
-                    if r2 < support2 {
-                        advected += boundary.volume[w] * kernel.w(r2.sqrt());
-                    }
+                    add(
+                        boundary.position[w],
+                        boundary.velocity[w],
+                        boundary.volume[w],
+                    );
                 }
                 let unseen = (advected - (density[i] + dt * rate)).min(advected - 1.0);
                 worst = worst.max(unseen);
