@@ -156,6 +156,17 @@ fn passes(c: &mut Criterion) {
                 lists.pair_count()
             })
         });
+        // The same lists with the scalar candidate filter (the path of CPUs without
+        // AVX-512F), for the before/after of the SIMD filter.
+        s.fluid_grid.set_simd(false);
+        g.bench_function(BenchmarkId::new("fluid_lists_portable", name), |b| {
+            b.iter(|| {
+                s.fluid_grid
+                    .neighbor_lists(&s.fluid.position, true, &mut lists);
+                lists.pair_count()
+            })
+        });
+        s.fluid_grid.set_simd(true);
         g.bench_function(BenchmarkId::new("boundary_lists", name), |b| {
             b.iter(|| {
                 s.boundary_grid
