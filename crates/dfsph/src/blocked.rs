@@ -163,6 +163,62 @@ impl BlockedPairs {
         scalar_velocity_gradient_dots(idx, gx, gy, v)
     }
 
+    /// `Σ_j V·W(x̃_i − x̃_j)` over the fluid neighbours of the 16 particles of block `b`, at
+    /// the positions `x̃ = x + Δt·v` a step of `dt` moves them to (the linearisation check,
+    /// `solver::unseen_compression`), started from `start` per lane. Pairs whose advected
+    /// distance reaches the support add nothing. Per lane the terms are added in list order,
+    /// with the scalar expressions' roundings, so both paths give identical bits.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub fn advected_kernel_sums(
+        &self,
+        b: usize,
+        pos: &[Vec2],
+        vel: &[Vec2],
+        dt: f32,
+        kernel: &CubicSpline,
+        volume: f32,
+        start: f32,
+    ) -> [f32; LANES] {
+        assert!(pos.len() >= self.n && vel.len() >= self.n);
+        let (idx, _, _) = self.block(b);
+        // Each lane's own advected position; lanes past the last particle get particle
+        // 0's, and their sums are not used.
+        let own = |l: usize| (b * LANES + l).min(self.n.saturating_sub(1));
+        let xi: [Vec2; LANES] = std::array::from_fn(|l| {
+            let i = own(l);
+            if self.n == 0 {
+                Vec2::ZERO
+            } else {
+                pos[i] + dt * vel[i]
+            }
+        });
+        #[cfg(target_arch = "x86_64")]
+        if self.avx512 {
+            // SAFETY: AVX-512F is present (checked in `prepare`), and every index is below
+            // `self.n <= pos.len(), vel.len()` (checked when written).
+            return unsafe {
+                avx512::advected_kernel_sums(b, idx, &xi, pos, vel, dt, kernel, volume, start)
+            };
+        }
+        let support2 = kernel.support() * kernel.support();
+        let mut sums = [start; LANES];
+        for slot in idx.chunks_exact(LANES) {
+            for (l, &j) in slot.iter().enumerate() {
+                // Padding repeats the particle itself, which is never its own neighbour.
+                if j as usize == b * LANES + l {
+                    continue;
+                }
+                let xj = pos[j as usize] + dt * vel[j as usize];
+                let r2 = (xi[l] - xj).length_squared();
+                if r2 < support2 {
+                    sums[l] += volume * kernel.w(r2.sqrt());
+                }
+            }
+        }
+        sums
+    }
+
     /// Use the SIMD kernels where the CPU has them (the default), or force the portable path
     /// (tests compare the two).
     pub fn set_simd(&mut self, on: bool) {
@@ -415,15 +471,8 @@ mod avx512 {
             let inner = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(q, c(0.5));
             let inside = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, c(1.0));
             // W: k·(6q³ − 6q² + 1) inside q ≤ ½, 2k·(1 − q)³ up to 1, 0 beyond.
-            let q2 = _mm512_mul_ps(q, q);
-            let six_q2 = _mm512_mul_ps(c(6.0), q2);
-            let w_in = _mm512_mul_ps(
-                c(k),
-                _mm512_add_ps(_mm512_sub_ps(_mm512_mul_ps(six_q2, q), six_q2), c(1.0)),
-            );
+            let w = cubic_w(q, inner, inside, k);
             let a = _mm512_sub_ps(c(1.0), q);
-            let w_out = _mm512_mul_ps(_mm512_mul_ps(_mm512_mul_ps(c(2.0 * k), a), a), a);
-            let w = _mm512_maskz_mov_ps(inside, _mm512_mask_blend_ps(inner, w_out, w_in));
             // dW/dq: l·q·(3q − 2) inside q ≤ ½, −l·(1 − q)² beyond.
             let d_in = _mm512_mul_ps(
                 _mm512_mul_ps(c(l), q),
@@ -450,6 +499,85 @@ mod avx512 {
         _mm512_storeu_ps(out.grad_x.as_mut_ptr(), sx);
         _mm512_storeu_ps(out.grad_y.as_mut_ptr(), sy);
         _mm512_storeu_ps(out.grad_sq.as_mut_ptr(), sq);
+        out
+    }
+
+    /// The cubic spline's `W` at `q` for 16 lanes, as [`CubicSpline::w`] computes it
+    /// (separate multiplies and adds in its order): `k·(6q³ − 6q² + 1)` where `inner`
+    /// (q ≤ ½), `2k·(1 − q)³` elsewhere in `inside` (q < 1), 0 beyond.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn cubic_w(q: __m512, inner: __mmask16, inside: __mmask16, k: f32) -> __m512 {
+        let c = |v: f32| _mm512_set1_ps(v);
+        let q2 = _mm512_mul_ps(q, q);
+        let six_q2 = _mm512_mul_ps(c(6.0), q2);
+        let w_in = _mm512_mul_ps(
+            c(k),
+            _mm512_add_ps(_mm512_sub_ps(_mm512_mul_ps(six_q2, q), six_q2), c(1.0)),
+        );
+        let a = _mm512_sub_ps(c(1.0), q);
+        let w_out = _mm512_mul_ps(_mm512_mul_ps(_mm512_mul_ps(c(2.0 * k), a), a), a);
+        _mm512_maskz_mov_ps(inside, _mm512_mask_blend_ps(inner, w_out, w_in))
+    }
+
+    /// [`super::BlockedPairs::advected_kernel_sums`], 16 pairs at a time.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F, `idx` must hold whole slots, and every index must be
+    /// below `pos.len()` and `vel.len()`.
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn advected_kernel_sums(
+        b: usize,
+        idx: &[u32],
+        xi: &[Vec2; LANES],
+        pos: &[Vec2],
+        vel: &[Vec2],
+        dt: f32,
+        kernel: &CubicSpline,
+        volume: f32,
+        start: f32,
+    ) -> [f32; LANES] {
+        let (k, _, inv_h) = kernel.constants();
+        let c = |v: f32| _mm512_set1_ps(v);
+        let support2 = c(kernel.support() * kernel.support());
+        let (pbase, vbase) = (pos.as_ptr() as *const f32, vel.as_ptr() as *const f32);
+        let lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        let own = _mm512_add_epi32(_mm512_set1_epi32((b * LANES) as i32), lane);
+        let flat = xi.as_ptr() as *const f32;
+        let (even, odd) = (
+            _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30),
+            _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31),
+        );
+        let (lo, hi) = (_mm512_loadu_ps(flat), _mm512_loadu_ps(flat.add(16)));
+        let xi_x = _mm512_permutex2var_ps(lo, even, hi);
+        let xi_y = _mm512_permutex2var_ps(lo, odd, hi);
+        let dtv = c(dt);
+        let mut sum = c(start);
+        for kk in (0..idx.len()).step_by(LANES) {
+            let j = _mm512_loadu_si512(idx.as_ptr().add(kk) as *const _);
+            // x_j + Δt·v_j, multiply then add, as the scalar `Vec2` expression.
+            let xj = _mm512_add_ps(
+                _mm512_i32gather_ps::<8>(j, pbase),
+                _mm512_mul_ps(dtv, _mm512_i32gather_ps::<8>(j, vbase)),
+            );
+            let yj = _mm512_add_ps(
+                _mm512_i32gather_ps::<8>(j, pbase.add(1)),
+                _mm512_mul_ps(dtv, _mm512_i32gather_ps::<8>(j, vbase.add(1))),
+            );
+            let (rx, ry) = (_mm512_sub_ps(xi_x, xj), _mm512_sub_ps(xi_y, yj));
+            let r2 = _mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry));
+            // Padding repeats the particle itself, which is never its own neighbour.
+            let pair =
+                _mm512_cmpneq_epi32_mask(j, own) & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(r2, support2);
+            let q = _mm512_mul_ps(_mm512_sqrt_ps(r2), c(inv_h));
+            let inner = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(q, c(0.5));
+            let inside = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, c(1.0));
+            let w = cubic_w(q, inner, inside, k);
+            sum = _mm512_mask_add_ps(sum, pair, sum, _mm512_mul_ps(c(volume), w));
+        }
+        let mut out = [0.0f32; LANES];
+        _mm512_storeu_ps(out.as_mut_ptr(), sum);
         out
     }
 
