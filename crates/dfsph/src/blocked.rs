@@ -219,6 +219,61 @@ impl BlockedPairs {
         sums
     }
 
+    /// The fluid–fluid viscosity sums of the 16 particles of block `b`, in list order:
+    /// `Σ_j −(v_i − v_j)·W_ij` (XSPH) and, with `laplacian`, `Σ_j ∇W_ij·(v_ij·x_ij)/(|x_ij|² +
+    /// eps2)` (the Laplacian model; zero otherwise). `W_ij` is evaluated from the positions,
+    /// `∇W_ij` read from the blocks. The scalar expressions' roundings are kept, so both paths
+    /// give identical bits.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub fn viscosity_sums(
+        &self,
+        b: usize,
+        pos: &[Vec2],
+        vel: &[Vec2],
+        kernel: &CubicSpline,
+        eps2: f32,
+        laplacian: bool,
+    ) -> ([Vec2; LANES], [Vec2; LANES]) {
+        assert!(pos.len() >= self.n && vel.len() >= self.n);
+        let (idx, gx, gy) = self.block(b);
+        // Lanes past the last particle read particle 0; their sums are not used.
+        let own = |l: usize| (b * LANES + l).min(self.n.saturating_sub(1));
+        let (xi, vi): ([Vec2; LANES], [Vec2; LANES]) = if self.n == 0 {
+            Default::default()
+        } else {
+            (
+                std::array::from_fn(|l| pos[own(l)]),
+                std::array::from_fn(|l| vel[own(l)]),
+            )
+        };
+        #[cfg(target_arch = "x86_64")]
+        if self.avx512 {
+            // SAFETY: AVX-512F is present (checked in `prepare`), the slices hold whole
+            // slots, and every index is below `self.n <= pos.len(), vel.len()`.
+            return unsafe {
+                avx512::viscosity_sums(b, idx, gx, gy, &xi, &vi, pos, vel, kernel, eps2, laplacian)
+            };
+        }
+        let mut smooth = [Vec2::ZERO; LANES];
+        let mut laplace = [Vec2::ZERO; LANES];
+        for (k, &j) in idx.iter().enumerate() {
+            let l = k % LANES;
+            // Padding repeats the particle itself, which is never its own neighbour.
+            if j as usize == b * LANES + l {
+                continue;
+            }
+            let xij = xi[l] - pos[j as usize];
+            let vij = vi[l] - vel[j as usize];
+            smooth[l] -= vij * kernel.w(xij.length());
+            if laplacian {
+                let g = Vec2::new(gx[k], gy[k]);
+                laplace[l] += g * (vij.dot(xij) / (xij.length_squared() + eps2));
+            }
+        }
+        (smooth, laplace)
+    }
+
     /// Use the SIMD kernels where the CPU has them (the default), or force the portable path
     /// (tests compare the two).
     pub fn set_simd(&mut self, on: bool) {
@@ -542,16 +597,8 @@ mod avx512 {
         let c = |v: f32| _mm512_set1_ps(v);
         let support2 = c(kernel.support() * kernel.support());
         let (pbase, vbase) = (pos.as_ptr() as *const f32, vel.as_ptr() as *const f32);
-        let lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-        let own = _mm512_add_epi32(_mm512_set1_epi32((b * LANES) as i32), lane);
-        let flat = xi.as_ptr() as *const f32;
-        let (even, odd) = (
-            _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30),
-            _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31),
-        );
-        let (lo, hi) = (_mm512_loadu_ps(flat), _mm512_loadu_ps(flat.add(16)));
-        let xi_x = _mm512_permutex2var_ps(lo, even, hi);
-        let xi_y = _mm512_permutex2var_ps(lo, odd, hi);
+        let own = own_indices(b);
+        let (xi_x, xi_y) = split_xy(xi);
         let dtv = c(dt);
         let mut sum = c(start);
         for kk in (0..idx.len()).step_by(LANES) {
@@ -579,6 +626,88 @@ mod avx512 {
         let mut out = [0.0f32; LANES];
         _mm512_storeu_ps(out.as_mut_ptr(), sum);
         out
+    }
+
+    /// 16 lanes of `(x, y)` pairs as two vectors of x and of y.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn split_xy(v: &[Vec2; LANES]) -> (__m512, __m512) {
+        let flat = v.as_ptr() as *const f32;
+        let (lo, hi) = (_mm512_loadu_ps(flat), _mm512_loadu_ps(flat.add(16)));
+        let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+        let odd = _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
+        (
+            _mm512_permutex2var_ps(lo, even, hi),
+            _mm512_permutex2var_ps(lo, odd, hi),
+        )
+    }
+
+    /// Particle indices `b·16 + lane` of block `b`'s lanes.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn own_indices(b: usize) -> __m512i {
+        let lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        _mm512_add_epi32(_mm512_set1_epi32((b * LANES) as i32), lane)
+    }
+
+    /// [`super::BlockedPairs::viscosity_sums`], 16 pairs at a time.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F, the three slices must hold whole slots, and every index
+    /// must be below `pos.len()` and `vel.len()`.
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn viscosity_sums(
+        b: usize,
+        idx: &[u32],
+        gx: &[f32],
+        gy: &[f32],
+        xi: &[Vec2; LANES],
+        vi: &[Vec2; LANES],
+        pos: &[Vec2],
+        vel: &[Vec2],
+        kernel: &CubicSpline,
+        eps2: f32,
+        laplacian: bool,
+    ) -> ([Vec2; LANES], [Vec2; LANES]) {
+        let (k, _, inv_h) = kernel.constants();
+        let c = |v: f32| _mm512_set1_ps(v);
+        let (pbase, vbase) = (pos.as_ptr() as *const f32, vel.as_ptr() as *const f32);
+        let own = own_indices(b);
+        let (xi_x, xi_y) = split_xy(xi);
+        let (vi_x, vi_y) = split_xy(vi);
+        let (mut sx, mut sy) = (_mm512_setzero_ps(), _mm512_setzero_ps());
+        let (mut lx, mut ly) = (_mm512_setzero_ps(), _mm512_setzero_ps());
+        for kk in (0..idx.len()).step_by(LANES) {
+            let j = _mm512_loadu_si512(idx.as_ptr().add(kk) as *const _);
+            let pair = _mm512_cmpneq_epi32_mask(j, own);
+            let rx = _mm512_sub_ps(xi_x, _mm512_i32gather_ps::<8>(j, pbase));
+            let ry = _mm512_sub_ps(xi_y, _mm512_i32gather_ps::<8>(j, pbase.add(1)));
+            let ux = _mm512_sub_ps(vi_x, _mm512_i32gather_ps::<8>(j, vbase));
+            let uy = _mm512_sub_ps(vi_y, _mm512_i32gather_ps::<8>(j, vbase.add(1)));
+            let r2 = _mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry));
+            let q = _mm512_mul_ps(_mm512_sqrt_ps(r2), c(inv_h));
+            let inner = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(q, c(0.5));
+            let inside = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, c(1.0));
+            let w = cubic_w(q, inner, inside, k);
+            sx = _mm512_mask_sub_ps(sx, pair, sx, _mm512_mul_ps(ux, w));
+            sy = _mm512_mask_sub_ps(sy, pair, sy, _mm512_mul_ps(uy, w));
+            if laplacian {
+                let dot = _mm512_add_ps(_mm512_mul_ps(ux, rx), _mm512_mul_ps(uy, ry));
+                let ratio = _mm512_div_ps(dot, _mm512_add_ps(r2, c(eps2)));
+                let gxv = _mm512_loadu_ps(gx.as_ptr().add(kk));
+                let gyv = _mm512_loadu_ps(gy.as_ptr().add(kk));
+                lx = _mm512_mask_add_ps(lx, pair, lx, _mm512_mul_ps(gxv, ratio));
+                ly = _mm512_mask_add_ps(ly, pair, ly, _mm512_mul_ps(gyv, ratio));
+            }
+        }
+        let store = |x: __m512, y: __m512| {
+            let (mut ax, mut ay) = ([0.0f32; LANES], [0.0f32; LANES]);
+            _mm512_storeu_ps(ax.as_mut_ptr(), x);
+            _mm512_storeu_ps(ay.as_mut_ptr(), y);
+            std::array::from_fn(|l| Vec2::new(ax[l], ay[l]))
+        };
+        (store(sx, sy), store(lx, ly))
     }
 
     /// # Safety

@@ -5,6 +5,7 @@ use glam::Vec2;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::blocked::LANES;
 use crate::kernel::CubicSpline;
 use crate::particles::{BoundaryParticles, FluidParticles};
 use crate::solver::Neighborhood;
@@ -62,66 +63,62 @@ pub fn non_pressure_accelerations(
     let lap = 8.0 * viscosity.kinematic;
     let lap_b = 8.0 * viscosity.boundary_kinematic;
     let pointer = pointer.filter(|p| p.radius > 0.0 && p.strength != 0.0);
+    // Everything but the fluid pair sums, for particle i.
+    let accelerate = |i: usize, smooth: Vec2, laplace: Vec2| {
+        let xi = pos[i];
+        let vi = vel[i];
+        let mut acc = gravity;
+        if xsph > 0.0 || lap > 0.0 {
+            acc += volume * (xsph * smooth + lap * laplace);
+        }
+        if lap_b > 0.0 {
+            let r = nb.boundary.range(i);
+            let mut laplace = Vec2::ZERO;
+            for (&b, &g) in nb.boundary.indices[r.clone()]
+                .iter()
+                .zip(&nb.boundary_grad[r])
+            {
+                let b = b as usize;
+                let xib = xi - boundary.position[b];
+                let vib = vi - boundary.velocity[b];
+                laplace += boundary.volume[b] * g * (vib.dot(xib) / (xib.length_squared() + h2));
+            }
+            acc += lap_b * laplace;
+        }
+        if let Some(p) = pointer {
+            let r = xi - p.at;
+            let dist = r.length();
+            if dist < p.radius {
+                let fade = 1.0 - dist / p.radius;
+                let dir = if dist > 1.0e-6 { r / dist } else { Vec2::ZERO };
+                let strength = p
+                    .strength
+                    .clamp(-MAX_POINTER_ACCELERATION, MAX_POINTER_ACCELERATION);
+                acc += dir * strength * fade;
+                // A pull also damps the motion relative to the pointer, so water gathers
+                // under the cursor instead of orbiting it.
+                if strength < 0.0 {
+                    acc -= vi * (fade * 4.0);
+                }
+            }
+        }
+        acc
+    };
     fluid
         .acceleration
-        .par_iter_mut()
+        .par_chunks_mut(LANES)
         .enumerate()
-        .for_each(|(i, a)| {
-            let xi = pos[i];
-            let vi = vel[i];
-            let mut acc = gravity;
-            if xsph > 0.0 || lap > 0.0 {
-                let mut smooth = Vec2::ZERO;
-                let mut laplace = Vec2::ZERO;
-                let r = nb.fluid.range(i);
-                for &j in &nb.fluid.indices[r] {
-                    let j = j as usize;
-                    let xij = xi - pos[j];
-                    let vij = vi - vel[j];
-                    // ∇W is recomputed here (once per step) rather than cached per pair: the
-                    // solver keeps its copy in SIMD blocks.
-                    let (w, g) = kernel.w_and_grad(xij);
-                    if xsph > 0.0 {
-                        smooth -= vij * w;
-                    }
-                    if lap > 0.0 {
-                        laplace += g * (vij.dot(xij) / (xij.length_squared() + h2));
-                    }
-                }
-                acc += volume * (xsph * smooth + lap * laplace);
+        .for_each(|(b, acc_block)| {
+            // The fluid pairs run 16 particles at a time on the solver's SIMD blocks (∇W is
+            // cached there; W is evaluated again, once per step).
+            let (smooth, laplace) = if xsph > 0.0 || lap > 0.0 {
+                nb.blocks.viscosity_sums(b, pos, vel, kernel, h2, lap > 0.0)
+            } else {
+                Default::default()
+            };
+            for (l, a) in acc_block.iter_mut().enumerate() {
+                let i = b * LANES + l;
+                *a = accelerate(i, smooth[l], laplace[l]);
             }
-            if lap_b > 0.0 {
-                let r = nb.boundary.range(i);
-                let mut laplace = Vec2::ZERO;
-                for (&b, &g) in nb.boundary.indices[r.clone()]
-                    .iter()
-                    .zip(&nb.boundary_grad[r])
-                {
-                    let b = b as usize;
-                    let xib = xi - boundary.position[b];
-                    let vib = vi - boundary.velocity[b];
-                    laplace +=
-                        boundary.volume[b] * g * (vib.dot(xib) / (xib.length_squared() + h2));
-                }
-                acc += lap_b * laplace;
-            }
-            if let Some(p) = pointer {
-                let r = xi - p.at;
-                let dist = r.length();
-                if dist < p.radius {
-                    let fade = 1.0 - dist / p.radius;
-                    let dir = if dist > 1.0e-6 { r / dist } else { Vec2::ZERO };
-                    let strength = p
-                        .strength
-                        .clamp(-MAX_POINTER_ACCELERATION, MAX_POINTER_ACCELERATION);
-                    acc += dir * strength * fade;
-                    // A pull also damps the motion relative to the pointer, so water gathers
-                    // under the cursor instead of orbiting it.
-                    if strength < 0.0 {
-                        acc -= vi * (fade * 4.0);
-                    }
-                }
-            }
-            *a = acc;
         });
 }

@@ -827,6 +827,57 @@ mod tests {
         assert!(rigid < 1.0e-5, "a rigid motion: {rigid}");
     }
 
+    /// XSPH and the Laplacian viscosity run on the blocks; both paths must give the same bits
+    /// and the pair formulas of `forces::non_pressure_accelerations`, written out directly.
+    #[test]
+    fn viscosity_sums_on_the_blocks_are_the_pair_formulas() {
+        let p = patch();
+        let mut portable = p.cache.clone();
+        portable.blocks.set_simd(false);
+        let (x, v) = (&p.fluid.position, &p.fluid.velocity);
+        let h = p.kernel.support();
+        let eps2 = 0.01 * h * h;
+        let mut nonzero = 0;
+        for b in 0..p.cache.blocks.blocks() {
+            let simd = p
+                .cache
+                .blocks
+                .viscosity_sums(b, x, v, &p.kernel, eps2, true);
+            let port = portable
+                .blocks
+                .viscosity_sums(b, x, v, &p.kernel, eps2, true);
+            let bits = |s: &[Vec2; LANES]| s.map(|g| (g.x.to_bits(), g.y.to_bits()));
+            assert_eq!(bits(&simd.0), bits(&port.0), "XSPH, block {b}");
+            assert_eq!(bits(&simd.1), bits(&port.1), "Laplacian, block {b}");
+            for l in 0..LANES {
+                let i = b * LANES + l;
+                if i >= p.fluid.len() {
+                    continue;
+                }
+                let (mut smooth, mut laplace) = (glam::DVec2::ZERO, glam::DVec2::ZERO);
+                for j in 0..p.fluid.len() {
+                    let (xij, vij) = (x[i] - x[j], v[i] - v[j]);
+                    if j != i && xij.length() < h {
+                        smooth -= (vij * p.kernel.w(xij.length())).as_dvec2();
+                        let ratio = vij.dot(xij) / (xij.length_squared() + eps2);
+                        laplace += (p.kernel.grad_w(xij) * ratio).as_dvec2();
+                    }
+                }
+                let (got_s, got_l) = (simd.0[l].as_dvec2(), simd.1[l].as_dvec2());
+                assert!(
+                    (got_s - smooth).length() <= 1.0e-4 * smooth.length().max(1.0),
+                    "particle {i}: XSPH {got_s} on the blocks, {smooth} directly"
+                );
+                assert!(
+                    (got_l - laplace).length() <= 1.0e-4 * laplace.length().max(1.0),
+                    "particle {i}: Laplacian {got_l} on the blocks, {laplace} directly"
+                );
+                nonzero += usize::from(smooth.length() > 1.0 && laplace.length() > 1.0);
+            }
+        }
+        assert!(nonzero > 100, "a real test needs real sums: {nonzero}");
+    }
+
     #[test]
     fn simd_and_portable_linearisation_checks_agree_bit_for_bit() {
         // The advected kernel sums repeat the scalar expressions operation by operation.
