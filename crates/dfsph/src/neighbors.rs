@@ -189,8 +189,8 @@ impl Grid {
         // In f64: far from the origin, an f32 product would misplace points by whole cells.
         // `as` saturates, so points at any distance get a (possibly out-of-grid) cell.
         let inv = self.inv_cell as f64;
-        let cx = ((p.x as f64 - self.origin.x as f64) * inv).floor() as i64;
-        let cy = ((p.y as f64 - self.origin.y as f64) * inv).floor() as i64;
+        let cx = floor_to_i64((p.x as f64 - self.origin.x as f64) * inv);
+        let cy = floor_to_i64((p.y as f64 - self.origin.y as f64) * inv);
         [cx, cy]
     }
 
@@ -478,6 +478,21 @@ mod avx512 {
     }
 }
 
+/// `v.floor() as i64` without the libm call that `floor` becomes on baseline x86-64 (no
+/// SSE4.1 `roundsd`): truncate, then step down where truncation went up. Saturates like
+/// `as` (±∞ and out-of-range values to the i64 limits, NaN to 0), and is exact in between:
+/// below 2⁵³ in magnitude the truncated value converts back exactly, and beyond it `v`
+/// is an integer already.
+#[inline]
+fn floor_to_i64(v: f64) -> i64 {
+    let t = v as i64;
+    if (t as f64) > v {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
+}
+
 /// Bounding box of a point set; (0,0)-(0,0) when empty.
 fn bounds(points: &[Vec2]) -> (Vec2, Vec2) {
     if points.is_empty() {
@@ -683,6 +698,36 @@ mod tests {
             Vec2::new(-3.0e4, 2.0),
         ]);
         assert!(check_cross(&mut grid, &queries, radius) > 0);
+    }
+
+    #[test]
+    fn floor_to_i64_is_floor_then_as() {
+        let edge = 2f64.powi(53);
+        for v in [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            2.999_999,
+            -2.000_001,
+            1e-300,
+            -1e-300,
+            edge - 0.5,
+            -edge + 0.5,
+            edge * 3.0,
+            -edge * 3.0,
+            9.3e18,
+            -9.3e18,
+            1e300,
+            -1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+        ] {
+            assert_eq!(floor_to_i64(v), v.floor() as i64, "{v}");
+        }
     }
 
     #[test]
