@@ -149,23 +149,18 @@ fn passes(c: &mut Criterion) {
             b.iter(|| grid.build(&positions).len())
         });
         let mut lists = NeighborLists::default();
-        g.bench_function(BenchmarkId::new("fluid_lists", name), |b| {
-            b.iter(|| {
-                s.fluid_grid
-                    .neighbor_lists(&s.fluid.position, true, &mut lists);
-                lists.pair_count()
-            })
-        });
-        // The same lists with the scalar candidate filter (the path of CPUs without
-        // AVX-512F), for the before/after of the SIMD filter.
-        s.fluid_grid.set_simd(false);
-        g.bench_function(BenchmarkId::new("fluid_lists_portable", name), |b| {
-            b.iter(|| {
-                s.fluid_grid
-                    .neighbor_lists(&s.fluid.position, true, &mut lists);
-                lists.pair_count()
-            })
-        });
+        // `fluid_lists_portable`: the same lists with the scalar candidate filter (the path of
+        // CPUs without AVX-512F), for the before/after of the SIMD filter.
+        for (label, simd) in [("fluid_lists", true), ("fluid_lists_portable", false)] {
+            s.fluid_grid.set_simd(simd);
+            g.bench_function(BenchmarkId::new(label, name), |b| {
+                b.iter(|| {
+                    s.fluid_grid
+                        .neighbor_lists(&s.fluid.position, true, &mut lists);
+                    lists.pair_count()
+                })
+            });
+        }
         s.fluid_grid.set_simd(true);
         g.bench_function(BenchmarkId::new("boundary_lists", name), |b| {
             b.iter(|| {

@@ -636,12 +636,7 @@ mod avx512 {
             _mm512_extracti64x4_epi64::<1>(j),
             base,
         ));
-        let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
-        let odd = _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
-        (
-            _mm512_permutex2var_ps(lo, even, hi),
-            _mm512_permutex2var_ps(lo, odd, hi),
-        )
+        deinterleave(lo, hi)
     }
 
     /// 16 lanes of `(x, y)` pairs as two vectors of x and of y.
@@ -649,7 +644,13 @@ mod avx512 {
     #[target_feature(enable = "avx512f")]
     unsafe fn split_xy(v: &[Vec2; LANES]) -> (__m512, __m512) {
         let flat = v.as_ptr() as *const f32;
-        let (lo, hi) = (_mm512_loadu_ps(flat), _mm512_loadu_ps(flat.add(16)));
+        deinterleave(_mm512_loadu_ps(flat), _mm512_loadu_ps(flat.add(16)))
+    }
+
+    /// `(x0, y0, …, x7, y7)` and `(x8, y8, …, x15, y15)` as `(x0 … x15)` and `(y0 … y15)`.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn deinterleave(lo: __m512, hi: __m512) -> (__m512, __m512) {
         let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
         let odd = _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
         (
