@@ -163,6 +163,21 @@ impl BlockedPairs {
         scalar_velocity_gradient_dots(idx, gx, gy, v)
     }
 
+    /// `value(i)` for each lane's particle `i` of block `b`. Lanes past the last particle
+    /// take particle 0's value (zero when there are no particles); their sums are not used.
+    fn per_lane(&self, b: usize, value: impl Fn(usize) -> Vec2) -> [Vec2; LANES] {
+        std::array::from_fn(|l| {
+            let i = b * LANES + l;
+            if i < self.n {
+                value(i)
+            } else if self.n > 0 {
+                value(0)
+            } else {
+                Vec2::ZERO
+            }
+        })
+    }
+
     /// `Σ_j V·W(x̃_i − x̃_j)` over the fluid neighbours of the 16 particles of block `b`, at
     /// the positions `x̃ = x + Δt·v` a step of `dt` moves them to (the linearisation check,
     /// `solver::unseen_compression`), started from `start` per lane. Pairs whose advected
@@ -182,17 +197,7 @@ impl BlockedPairs {
     ) -> [f32; LANES] {
         assert!(pos.len() >= self.n && vel.len() >= self.n);
         let (idx, _, _) = self.block(b);
-        // Each lane's own advected position; lanes past the last particle get particle
-        // 0's, and their sums are not used.
-        let own = |l: usize| (b * LANES + l).min(self.n.saturating_sub(1));
-        let xi: [Vec2; LANES] = std::array::from_fn(|l| {
-            let i = own(l);
-            if self.n == 0 {
-                Vec2::ZERO
-            } else {
-                pos[i] + dt * vel[i]
-            }
-        });
+        let xi = self.per_lane(b, |i| pos[i] + dt * vel[i]);
         #[cfg(target_arch = "x86_64")]
         if self.avx512 {
             // SAFETY: AVX-512F is present (checked in `prepare`), and every index is below
@@ -237,16 +242,7 @@ impl BlockedPairs {
     ) -> ([Vec2; LANES], [Vec2; LANES]) {
         assert!(pos.len() >= self.n && vel.len() >= self.n);
         let (idx, gx, gy) = self.block(b);
-        // Lanes past the last particle read particle 0; their sums are not used.
-        let own = |l: usize| (b * LANES + l).min(self.n.saturating_sub(1));
-        let (xi, vi): ([Vec2; LANES], [Vec2; LANES]) = if self.n == 0 {
-            Default::default()
-        } else {
-            (
-                std::array::from_fn(|l| pos[own(l)]),
-                std::array::from_fn(|l| vel[own(l)]),
-            )
-        };
+        let (xi, vi) = (self.per_lane(b, |i| pos[i]), self.per_lane(b, |i| vel[i]));
         #[cfg(target_arch = "x86_64")]
         if self.avx512 {
             // SAFETY: AVX-512F is present (checked in `prepare`), the slices hold whole
@@ -478,7 +474,7 @@ fn scalar_velocity_gradient_dots(idx: &[u32], gx: &[f32], gy: &[f32], v: &[Vec2]
 }
 
 #[cfg(target_arch = "x86_64")]
-mod avx512 {
+pub(crate) mod avx512 {
     use super::{FluidSums, LANES};
     use crate::kernel::CubicSpline;
     use glam::Vec2;
@@ -575,6 +571,16 @@ mod avx512 {
         _mm512_maskz_mov_ps(inside, _mm512_mask_blend_ps(inner, w_out, w_in))
     }
 
+    /// [`cubic_w`] at the squared distances `r2`, as [`CubicSpline::w`] of `√r2`.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn cubic_w_at(r2: __m512, inv_h: f32, k: f32) -> __m512 {
+        let q = _mm512_mul_ps(_mm512_sqrt_ps(r2), _mm512_set1_ps(inv_h));
+        let inner = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(q, _mm512_set1_ps(0.5));
+        let inside = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, _mm512_set1_ps(1.0));
+        cubic_w(q, inner, inside, k)
+    }
+
     /// [`super::BlockedPairs::advected_kernel_sums`], 16 pairs at a time.
     ///
     /// # Safety
@@ -597,7 +603,7 @@ mod avx512 {
         let c = |v: f32| _mm512_set1_ps(v);
         let support2 = c(kernel.support() * kernel.support());
         let (pbase, vbase) = (pos.as_ptr() as *const f32, vel.as_ptr() as *const f32);
-        let own = own_indices(b);
+        let own = indices_from((b * LANES) as u32);
         let (xi_x, xi_y) = split_xy(xi);
         let dtv = c(dt);
         let mut sum = c(start);
@@ -612,10 +618,7 @@ mod avx512 {
             // Padding repeats the particle itself, which is never its own neighbour.
             let pair =
                 _mm512_cmpneq_epi32_mask(j, own) & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(r2, support2);
-            let q = _mm512_mul_ps(_mm512_sqrt_ps(r2), c(inv_h));
-            let inner = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(q, c(0.5));
-            let inside = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, c(1.0));
-            let w = cubic_w(q, inner, inside, k);
+            let w = cubic_w_at(r2, inv_h, k);
             sum = _mm512_mask_add_ps(sum, pair, sum, _mm512_mul_ps(c(volume), w));
         }
         let mut out = [0.0f32; LANES];
@@ -650,7 +653,7 @@ mod avx512 {
     /// `(x0, y0, …, x7, y7)` and `(x8, y8, …, x15, y15)` as `(x0 … x15)` and `(y0 … y15)`.
     #[inline]
     #[target_feature(enable = "avx512f")]
-    fn deinterleave(lo: __m512, hi: __m512) -> (__m512, __m512) {
+    pub(crate) fn deinterleave(lo: __m512, hi: __m512) -> (__m512, __m512) {
         let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
         let odd = _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
         (
@@ -659,12 +662,12 @@ mod avx512 {
         )
     }
 
-    /// Particle indices `b·16 + lane` of block `b`'s lanes.
+    /// The 16 consecutive indices `first, first + 1, …, first + 15`.
     #[inline]
     #[target_feature(enable = "avx512f")]
-    fn own_indices(b: usize) -> __m512i {
+    pub(crate) fn indices_from(first: u32) -> __m512i {
         let lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-        _mm512_add_epi32(_mm512_set1_epi32((b * LANES) as i32), lane)
+        _mm512_add_epi32(_mm512_set1_epi32(first as i32), lane)
     }
 
     /// [`super::BlockedPairs::viscosity_sums`], 16 pairs at a time.
@@ -690,7 +693,7 @@ mod avx512 {
         let (k, _, inv_h) = kernel.constants();
         let c = |v: f32| _mm512_set1_ps(v);
         let (pbase, vbase) = (pos.as_ptr() as *const f32, vel.as_ptr() as *const f32);
-        let own = own_indices(b);
+        let own = indices_from((b * LANES) as u32);
         let (xi_x, xi_y) = split_xy(xi);
         let (vi_x, vi_y) = split_xy(vi);
         let (mut sx, mut sy) = (_mm512_setzero_ps(), _mm512_setzero_ps());
@@ -702,10 +705,7 @@ mod avx512 {
             let (rx, ry) = (_mm512_sub_ps(xi_x, xj), _mm512_sub_ps(xi_y, yj));
             let (ux, uy) = (_mm512_sub_ps(vi_x, vxj), _mm512_sub_ps(vi_y, vyj));
             let r2 = _mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry));
-            let q = _mm512_mul_ps(_mm512_sqrt_ps(r2), c(inv_h));
-            let inner = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(q, c(0.5));
-            let inside = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, c(1.0));
-            let w = cubic_w(q, inner, inside, k);
+            let w = cubic_w_at(r2, inv_h, k);
             sx = _mm512_mask_sub_ps(sx, pair, sx, _mm512_mul_ps(ux, w));
             sy = _mm512_mask_sub_ps(sy, pair, sy, _mm512_mul_ps(uy, w));
             if laplacian {

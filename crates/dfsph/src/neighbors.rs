@@ -406,6 +406,7 @@ fn push_near(
 
 #[cfg(target_arch = "x86_64")]
 mod avx512 {
+    use crate::blocked::avx512::{deinterleave, indices_from};
     use glam::Vec2;
     use std::arch::x86_64::*;
 
@@ -425,9 +426,6 @@ mod avx512 {
         // `Vec2` is two f32 (x, y); the candidates are read as one flat f32 array.
         let xy = candidates.as_ptr() as *const f32;
         let n = candidates.len();
-        let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
-        let odd = _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
-        let lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
         let (px, py) = (_mm512_set1_ps(p.x), _mm512_set1_ps(p.y));
         let radius2 = _mm512_set1_ps(r2);
         let skip = _mm512_set1_epi32(skip as i32);
@@ -457,12 +455,12 @@ mod avx512 {
             // (its lanes are all masked then, and a masked lane is never read).
             let lo = _mm512_maskz_loadu_ps(lo_mask, xy.wrapping_add(2 * k));
             let hi = _mm512_maskz_loadu_ps(hi_mask, xy.wrapping_add(2 * k + 16));
-            let dx = _mm512_sub_ps(px, _mm512_permutex2var_ps(lo, even, hi));
-            let dy = _mm512_sub_ps(py, _mm512_permutex2var_ps(lo, odd, hi));
+            let (x, y) = deinterleave(lo, hi);
+            let (dx, dy) = (_mm512_sub_ps(px, x), _mm512_sub_ps(py, y));
             // dx·dx + dy·dy with two roundings and no fused multiply-add, as glam's scalar
             // `length_squared`.
             let d2 = _mm512_add_ps(_mm512_mul_ps(dx, dx), _mm512_mul_ps(dy, dy));
-            let index = _mm512_add_epi32(_mm512_set1_epi32((first + k as u32) as i32), lane);
+            let index = indices_from(first + k as u32);
             let near = _mm512_mask_cmp_ps_mask::<_CMP_LT_OQ>(valid, d2, radius2)
                 & _mm512_cmpneq_epi32_mask(index, skip);
             if near != 0 {
