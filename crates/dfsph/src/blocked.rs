@@ -126,6 +126,7 @@ impl BlockedPairs {
     }
 
     /// Block `b`'s indices and gradients, slot by slot.
+    #[inline]
     fn block(&self, b: usize) -> (&[u32], &[f32], &[f32]) {
         let e = self.slot_start[b] as usize * LANES..self.slot_start[b + 1] as usize * LANES;
         (
@@ -161,6 +162,84 @@ impl BlockedPairs {
             return unsafe { avx512::velocity_gradient_dots(idx, gx, gy, v) };
         }
         scalar_velocity_gradient_dots(idx, gx, gy, v)
+    }
+
+    /// Particles of block `b`: 16, fewer in the last block.
+    #[inline]
+    fn lanes_of(&self, b: usize) -> usize {
+        self.n.saturating_sub(b * LANES).min(LANES)
+    }
+
+    /// The residual pass of one Jacobi iteration over block `b` (see [`ResidualTerms`]):
+    /// writes `Δκ_i` of the block's particles into `delta` (one entry per particle of the
+    /// block) and returns the sum and the largest of their residuals `e_i`, the sum taken
+    /// lane by lane in f64.
+    #[inline]
+    pub fn residual_block(
+        &self,
+        b: usize,
+        vel: &[Vec2],
+        terms: &ResidualTerms,
+        delta: &mut [f32],
+    ) -> (f64, f64) {
+        let lanes = self.lanes_of(b);
+        assert!(vel.len() >= self.n && terms.holds(self.n) && delta.len() == lanes);
+        let (idx, gx, gy) = self.block(b);
+        #[cfg(target_arch = "x86_64")]
+        if self.avx512 {
+            // SAFETY: AVX-512F is present (checked in `prepare`), every index is below
+            // `self.n <= vel.len()` (checked when written), and the per-particle arrays hold
+            // the block's `lanes` particles from `b·16` on (asserted above).
+            return unsafe { avx512::residual_block(idx, gx, gy, vel, b * LANES, terms, delta) };
+        }
+        let fluid = scalar_velocity_gradient_dots(idx, gx, gy, vel);
+        let (mut sum, mut max) = (0.0f64, 0.0f64);
+        for (l, d) in delta.iter_mut().enumerate() {
+            let i = b * LANES + l;
+            let rate = vel[i].dot(terms.grad_sum[i]) - terms.volume * fluid[l] - terms.wall_flux[i];
+            let e = (terms.source[i] + terms.rate_scale * rate).max(0.0);
+            *d = e * terms.factor[i] * terms.increment_scale;
+            sum += e as f64;
+            max = max.max(e as f64);
+        }
+        (sum, max)
+    }
+
+    /// Apply the stiffness field `kappa` to the velocities of block `b`'s particles (`vel`,
+    /// one entry per particle of the block): `Δv_i = −(κ_i·g_i + V·Σ_j κ_j ∇W_ij)` with
+    /// `g_i = grad_sum[i]` (TVCG 2017 eq. 8–9 with the walls' share cached in `g_i`), and add
+    /// `κ_i` to `total` (the block's entries) when given.
+    #[inline]
+    pub fn apply_block(
+        &self,
+        b: usize,
+        volume: f32,
+        kappa: &[f32],
+        grad_sum: &[Vec2],
+        vel: &mut [Vec2],
+        total: Option<&mut [f32]>,
+    ) {
+        let lanes = self.lanes_of(b);
+        assert!(kappa.len() >= self.n && grad_sum.len() >= self.n && vel.len() == lanes);
+        assert!(total.as_ref().is_none_or(|t| t.len() == lanes));
+        let (idx, gx, gy) = self.block(b);
+        #[cfg(target_arch = "x86_64")]
+        if self.avx512 {
+            // SAFETY: AVX-512F is present, every index is below `self.n <= kappa.len()`,
+            // and `kappa`, `grad_sum` hold the block's particles (asserted above).
+            return unsafe {
+                avx512::apply_block(idx, gx, gy, kappa, b * LANES, grad_sum, volume, vel, total)
+            };
+        }
+        let (sx, sy) = scalar_weighted_gradient_sums(idx, gx, gy, kappa);
+        let mut total = total;
+        for (l, v) in vel.iter_mut().enumerate() {
+            let i = b * LANES + l;
+            *v += -(kappa[i] * grad_sum[i] + volume * Vec2::new(sx[l], sy[l]));
+            if let Some(t) = total.as_deref_mut() {
+                t[l] += kappa[i];
+            }
+        }
     }
 
     /// `value(i)` for each lane's particle `i` of block `b`. Lanes past the last particle
@@ -406,6 +485,39 @@ impl BlockWriter<'_> {
             }
         }
         sums
+    }
+}
+
+/// The per-particle terms of a Jacobi iteration's residual pass
+/// ([`BlockedPairs::residual_block`]). Particle i's relative density rate is
+/// `r_i = v_i·g_i − V·Σ_j v_j·∇W_ij − f_i` (`g` = `grad_sum`, `f` = `wall_flux`: TVCG 2017
+/// eq. 7 with the walls' share cached), its residual `e_i = max(source_i + rate_scale·r_i, 0)`
+/// and its stiffness increment `Δκ_i = e_i·factor_i·increment_scale`.
+#[derive(Clone, Copy, Debug)]
+pub struct ResidualTerms<'a> {
+    /// Fluid particle volume V, m².
+    pub volume: f32,
+    pub grad_sum: &'a [Vec2],
+    pub wall_flux: &'a [f32],
+    /// The part of the residual that does not depend on the velocities.
+    pub source: &'a [f32],
+    pub rate_scale: f32,
+    /// The DFSPH factor a_i.
+    pub factor: &'a [f32],
+    pub increment_scale: f32,
+}
+
+impl ResidualTerms<'_> {
+    /// Whether every per-particle array holds at least `n` particles.
+    fn holds(&self, n: usize) -> bool {
+        [
+            self.grad_sum.len(),
+            self.wall_flux.len(),
+            self.source.len(),
+            self.factor.len(),
+        ]
+        .iter()
+        .all(|&len| len >= n)
     }
 }
 
@@ -726,16 +838,173 @@ pub(crate) mod avx512 {
         (store(sx, sy), store(lx, ly))
     }
 
+    /// Load masks of the two halves of `lanes` (x, y) pairs read as a flat f32 array.
+    #[inline]
+    fn pair_masks(lanes: usize) -> (__mmask16, __mmask16) {
+        let mask = |floats: usize| ((1u32 << floats.min(16)) - 1) as __mmask16;
+        (mask(2 * lanes), mask((2 * lanes).saturating_sub(16)))
+    }
+
+    /// Lanes `0..lanes` set.
+    #[inline]
+    fn lane_mask(lanes: usize) -> __mmask16 {
+        ((1u32 << lanes) - 1) as __mmask16
+    }
+
+    /// `lanes` (≤ 16) consecutive `Vec2` from `p` as x and y vectors; the lanes past them
+    /// read 0 and nothing past them is read.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn load_pairs(p: *const Vec2, lanes: usize) -> (__m512, __m512) {
+        let (lo, hi) = pair_masks(lanes);
+        let flat = p as *const f32;
+        // `wrapping_add`: with 8 or fewer lanes the second half lies past the data, and
+        // all its lanes are masked (a masked lane is never read).
+        deinterleave(
+            _mm512_maskz_loadu_ps(lo, flat),
+            _mm512_maskz_loadu_ps(hi, flat.wrapping_add(16)),
+        )
+    }
+
+    /// Store the first `lanes` of `x` and `y` as (x, y) pairs at `p`, writing nothing past
+    /// them.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn store_pairs(p: *mut Vec2, lanes: usize, x: __m512, y: __m512) {
+        let first = _mm512_setr_epi32(0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6, 22, 7, 23);
+        let second =
+            _mm512_setr_epi32(8, 24, 9, 25, 10, 26, 11, 27, 12, 28, 13, 29, 14, 30, 15, 31);
+        let (lo, hi) = pair_masks(lanes);
+        let flat = p as *mut f32;
+        _mm512_mask_storeu_ps(flat, lo, _mm512_permutex2var_ps(x, first, y));
+        _mm512_mask_storeu_ps(
+            flat.wrapping_add(16),
+            hi,
+            _mm512_permutex2var_ps(x, second, y),
+        );
+    }
+
+    /// `−x` by flipping the sign bit, exactly as scalar negation (also for zeros).
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn negate(x: __m512) -> __m512 {
+        let sign = _mm512_set1_epi32(i32::MIN);
+        _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(x), sign))
+    }
+
+    /// [`super::BlockedPairs::residual_block`]: the pair loop of [`velocity_gradient_dots`],
+    /// then the per-particle terms 16 lanes at a time, with the portable code's operations
+    /// in its order (so the two differ only by the pair loop's fused multiply-adds).
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F, the three slices the same length (a multiple of 16),
+    /// every index below `vel.len()`, and `vel` and the arrays of `terms` must hold the
+    /// `delta.len()` (≤ 16) particles from `first` on.
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn residual_block(
+        idx: &[u32],
+        gx: &[f32],
+        gy: &[f32],
+        vel: &[Vec2],
+        first: usize,
+        terms: &super::ResidualTerms,
+        delta: &mut [f32],
+    ) -> (f64, f64) {
+        let lanes = delta.len();
+        let fluid = velocity_gradient_dot_lanes(idx, gx, gy, vel);
+        let m = lane_mask(lanes);
+        let c = |v: f32| _mm512_set1_ps(v);
+        let load = |a: &[f32]| _mm512_maskz_loadu_ps(m, a.as_ptr().add(first));
+        let (vx, vy) = load_pairs(vel.as_ptr().add(first), lanes);
+        let (gsx, gsy) = load_pairs(terms.grad_sum.as_ptr().add(first), lanes);
+        // v_i·g_i as glam's `dot`: x·x' + y·y'.
+        let dot = _mm512_add_ps(_mm512_mul_ps(vx, gsx), _mm512_mul_ps(vy, gsy));
+        let rate = _mm512_sub_ps(
+            _mm512_sub_ps(dot, _mm512_mul_ps(c(terms.volume), fluid)),
+            load(terms.wall_flux),
+        );
+        // `max` returns its second operand, 0, for a NaN, as `f32::max` does.
+        let e = _mm512_max_ps(
+            _mm512_add_ps(load(terms.source), _mm512_mul_ps(c(terms.rate_scale), rate)),
+            _mm512_setzero_ps(),
+        );
+        let d = _mm512_mul_ps(
+            _mm512_mul_ps(e, load(terms.factor)),
+            c(terms.increment_scale),
+        );
+        _mm512_mask_storeu_ps(delta.as_mut_ptr(), m, d);
+        let mut es = [0.0f32; LANES];
+        _mm512_storeu_ps(es.as_mut_ptr(), e);
+        let (mut sum, mut max) = (0.0f64, 0.0f64);
+        for &e in &es[..lanes] {
+            sum += e as f64;
+            max = max.max(e as f64);
+        }
+        (sum, max)
+    }
+
+    /// [`super::BlockedPairs::apply_block`]: the pair loop of [`weighted_gradient_sums`],
+    /// then `Δv` and the running total 16 lanes at a time, with the portable code's
+    /// operations in its order.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F, the three slices the same length (a multiple of 16),
+    /// every index below `kappa.len()`, `kappa` and `grad_sum` must hold the `vel.len()`
+    /// (≤ 16) particles from `first` on, and `total`, when given, as many entries as `vel`.
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn apply_block(
+        idx: &[u32],
+        gx: &[f32],
+        gy: &[f32],
+        kappa: &[f32],
+        first: usize,
+        grad_sum: &[Vec2],
+        volume: f32,
+        vel: &mut [Vec2],
+        total: Option<&mut [f32]>,
+    ) {
+        let lanes = vel.len();
+        let (sx, sy) = weighted_gradient_sum_lanes(idx, gx, gy, kappa);
+        let m = lane_mask(lanes);
+        let ki = _mm512_maskz_loadu_ps(m, kappa.as_ptr().add(first));
+        let (gsx, gsy) = load_pairs(grad_sum.as_ptr().add(first), lanes);
+        let vol = _mm512_set1_ps(volume);
+        // Δv = −(κ_i·g_i + V·s), then v + Δv.
+        let dvx = negate(_mm512_add_ps(
+            _mm512_mul_ps(ki, gsx),
+            _mm512_mul_ps(vol, sx),
+        ));
+        let dvy = negate(_mm512_add_ps(
+            _mm512_mul_ps(ki, gsy),
+            _mm512_mul_ps(vol, sy),
+        ));
+        let (vx, vy) = load_pairs(vel.as_ptr(), lanes);
+        store_pairs(
+            vel.as_mut_ptr(),
+            lanes,
+            _mm512_add_ps(vx, dvx),
+            _mm512_add_ps(vy, dvy),
+        );
+        if let Some(t) = total {
+            let sum = _mm512_add_ps(_mm512_maskz_loadu_ps(m, t.as_ptr()), ki);
+            _mm512_mask_storeu_ps(t.as_mut_ptr(), m, sum);
+        }
+    }
+
+    /// `Σ_j s_j ∇W_ij` per lane, x and y.
+    ///
     /// # Safety
     /// The CPU must have AVX-512F, the three slices the same length (a multiple of 16), and
     /// every index below `s.len()`.
+    #[inline]
     #[target_feature(enable = "avx512f")]
-    pub unsafe fn weighted_gradient_sums(
+    unsafe fn weighted_gradient_sum_lanes(
         idx: &[u32],
         gx: &[f32],
         gy: &[f32],
         s: &[f32],
-    ) -> ([f32; LANES], [f32; LANES]) {
+    ) -> (__m512, __m512) {
         let mut ax = _mm512_setzero_ps();
         let mut ay = _mm512_setzero_ps();
         for k in (0..idx.len()).step_by(LANES) {
@@ -744,21 +1013,37 @@ pub(crate) mod avx512 {
             ax = _mm512_fmadd_ps(sj, _mm512_loadu_ps(gx.as_ptr().add(k)), ax);
             ay = _mm512_fmadd_ps(sj, _mm512_loadu_ps(gy.as_ptr().add(k)), ay);
         }
+        (ax, ay)
+    }
+
+    /// # Safety
+    /// As [`weighted_gradient_sum_lanes`].
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn weighted_gradient_sums(
+        idx: &[u32],
+        gx: &[f32],
+        gy: &[f32],
+        s: &[f32],
+    ) -> ([f32; LANES], [f32; LANES]) {
+        let (ax, ay) = weighted_gradient_sum_lanes(idx, gx, gy, s);
         let mut out = ([0.0f32; LANES], [0.0f32; LANES]);
         _mm512_storeu_ps(out.0.as_mut_ptr(), ax);
         _mm512_storeu_ps(out.1.as_mut_ptr(), ay);
         out
     }
 
+    /// `Σ_j v_j·∇W_ij` per lane.
+    ///
     /// # Safety
-    /// As [`weighted_gradient_sums`], with every index below `v.len()`.
+    /// As [`weighted_gradient_sum_lanes`], with every index below `v.len()`.
+    #[inline]
     #[target_feature(enable = "avx512f")]
-    pub unsafe fn velocity_gradient_dots(
+    unsafe fn velocity_gradient_dot_lanes(
         idx: &[u32],
         gx: &[f32],
         gy: &[f32],
         v: &[Vec2],
-    ) -> [f32; LANES] {
+    ) -> __m512 {
         let base = v.as_ptr() as *const f32;
         // Two accumulators, so that consecutive multiply-adds do not wait for each other.
         let mut ax = _mm512_setzero_ps();
@@ -770,8 +1055,23 @@ pub(crate) mod avx512 {
             ax = _mm512_fmadd_ps(vx, _mm512_loadu_ps(gx.as_ptr().add(k)), ax);
             ay = _mm512_fmadd_ps(vy, _mm512_loadu_ps(gy.as_ptr().add(k)), ay);
         }
+        _mm512_add_ps(ax, ay)
+    }
+
+    /// # Safety
+    /// As [`velocity_gradient_dot_lanes`].
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn velocity_gradient_dots(
+        idx: &[u32],
+        gx: &[f32],
+        gy: &[f32],
+        v: &[Vec2],
+    ) -> [f32; LANES] {
         let mut out = [0.0f32; LANES];
-        _mm512_storeu_ps(out.as_mut_ptr(), _mm512_add_ps(ax, ay));
+        _mm512_storeu_ps(
+            out.as_mut_ptr(),
+            velocity_gradient_dot_lanes(idx, gx, gy, v),
+        );
         out
     }
 }
@@ -843,6 +1143,97 @@ mod tests {
                         );
                     }
                 }
+            }
+        }
+    }
+
+    /// The fused block passes of the Jacobi iterations: the per-particle terms on top of the
+    /// pair sums, checked against the formulas written out per particle. On each path the
+    /// terms are the scalar expressions in their order, so they must match the path's own
+    /// pair sums followed by those expressions bit for bit (a reordered or fused term fails).
+    #[test]
+    fn block_passes_add_the_per_particle_terms_of_the_scalar_code() {
+        for n in [16usize, 1000, 37] {
+            let (lists, grads) = random_lists(n);
+            let val = |k: usize, salt: u64| unit(k as u64 * 7 + salt) - 0.3;
+            let vec = |k: usize, salt: u64| Vec2::new(val(k, salt), val(k, salt + 1));
+            let kappa: Vec<f32> = (0..n).map(|k| val(k, 1)).collect();
+            let vel: Vec<Vec2> = (0..n).map(|k| vec(k, 2)).collect();
+            let grad_sum: Vec<Vec2> = (0..n).map(|k| vec(k, 4)).collect();
+            let wall_flux: Vec<f32> = (0..n).map(|k| val(k, 6)).collect();
+            // Some sources of −∞ (particles left out), some residuals clamped at 0.
+            let source: Vec<f32> = (0..n)
+                .map(|k| {
+                    if k % 9 == 4 {
+                        f32::NEG_INFINITY
+                    } else {
+                        val(k, 7)
+                    }
+                })
+                .collect();
+            let factor: Vec<f32> = (0..n).map(|k| 1.0 + val(k, 8)).collect();
+            let terms = ResidualTerms {
+                volume: 0.7,
+                grad_sum: &grad_sum,
+                wall_flux: &wall_flux,
+                source: &source,
+                rate_scale: 0.25,
+                factor: &factor,
+                increment_scale: 3.0,
+            };
+            let mut blocks = BlockedPairs::default();
+            blocks.build(&lists, &grads);
+            for simd in [false, true] {
+                blocks.set_simd(simd);
+                let mut moved = vel.clone();
+                let mut total: Vec<f32> = (0..n).map(|k| val(k, 9)).collect();
+                let mut delta = vec![0.0f32; n];
+                for b in 0..blocks.blocks() {
+                    let r = b * LANES..((b + 1) * LANES).min(n);
+                    let (sum, max) = blocks.residual_block(b, &vel, &terms, &mut delta[r.clone()]);
+                    blocks.apply_block(
+                        b,
+                        terms.volume,
+                        &kappa,
+                        &grad_sum,
+                        &mut moved[r.clone()],
+                        Some(&mut total[r.clone()]),
+                    );
+                    let dots = blocks.velocity_gradient_dots(b, &vel);
+                    let (sx, sy) = blocks.weighted_gradient_sums(b, &kappa);
+                    let (mut want_sum, mut want_max) = (0.0f64, 0.0f64);
+                    for i in r {
+                        let l = i - b * LANES;
+                        let rate = vel[i].dot(grad_sum[i]) - 0.7 * dots[l] - wall_flux[i];
+                        let e = (source[i] + 0.25 * rate).max(0.0);
+                        let d = e * factor[i] * 3.0;
+                        assert_eq!(delta[i].to_bits(), d.to_bits(), "simd {simd}, n {n}, {i}");
+                        (want_sum, want_max) = (want_sum + e as f64, want_max.max(e as f64));
+                        let dv = -(kappa[i] * grad_sum[i] + 0.7 * Vec2::new(sx[l], sy[l]));
+                        let v = vel[i] + dv;
+                        assert_eq!(
+                            (moved[i].x.to_bits(), moved[i].y.to_bits()),
+                            (v.x.to_bits(), v.y.to_bits()),
+                            "simd {simd}, n {n}, particle {i}"
+                        );
+                        let t = val(i, 9) + kappa[i];
+                        assert_eq!(total[i].to_bits(), t.to_bits(), "simd {simd}, {i}");
+                        // The left-out particles, and the formula against f64.
+                        if source[i] == f32::NEG_INFINITY {
+                            assert_eq!(d, 0.0);
+                        }
+                        let rate64 = vel[i].as_dvec2().dot(grad_sum[i].as_dvec2())
+                            - 0.7 * dots[l] as f64
+                            - wall_flux[i] as f64;
+                        let e64 = (source[i] as f64 + 0.25 * rate64).max(0.0);
+                        assert!((e as f64 - e64).abs() < 1e-5, "simd {simd}, {i}");
+                    }
+                    assert_eq!(sum.to_bits(), want_sum.to_bits(), "simd {simd}, block {b}");
+                    assert_eq!(max, want_max, "simd {simd}, block {b}");
+                }
+                // Every particle was written: none of the placeholder zeros remain where a
+                // residual is positive somewhere in the block.
+                assert!(delta.iter().any(|&d| d > 0.0), "simd {simd}: a real test");
             }
         }
     }

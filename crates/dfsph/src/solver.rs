@@ -20,7 +20,7 @@
 use glam::Vec2;
 use rayon::prelude::*;
 
-use crate::blocked::{BlockedPairs, LANES};
+use crate::blocked::{BlockedPairs, ResidualTerms, LANES};
 use crate::kernel::CubicSpline;
 use crate::neighbors::NeighborLists;
 use crate::particles::{BoundaryParticles, FluidParticles};
@@ -214,29 +214,13 @@ fn block_density_rates(b: usize, volume: f32, vel: &[Vec2], nb: &Neighborhood) -
     })
 }
 
-/// The velocity changes `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − κ_i Σ_b Ψ_b ∇W_ib` of the 16
-/// particles of block `b`, written as `−κ_i (Σ_j V_j ∇W_ij + Σ_b Ψ_b ∇W_ib) − V Σ_j κ_j ∇W_ij`
-/// with the first sum cached for the step.
-#[inline]
-fn block_pressure_dv(b: usize, volume: f32, kappa: &[f32], nb: &Neighborhood) -> [Vec2; LANES] {
-    let (sx, sy) = nb.blocks.weighted_gradient_sums(b, kappa);
-    std::array::from_fn(|l| {
-        let i = b * LANES + l;
-        if i < kappa.len() {
-            -(kappa[i] * nb.grad_sum[i] + volume * Vec2::new(sx[l], sy[l]))
-        } else {
-            Vec2::ZERO
-        }
-    })
-}
-
-/// Apply `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − κ_i Σ_b Ψ_b ∇W_ib` to every fluid velocity.
+/// Apply `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − κ_i Σ_b Ψ_b ∇W_ib` to every fluid velocity,
+/// written as `−κ_i (Σ_j V_j ∇W_ij + Σ_b Ψ_b ∇W_ib) − V Σ_j κ_j ∇W_ij` with the first sum
+/// cached for the step.
 pub fn apply_pressure(volume: f32, kappa: &[f32], vel: &mut [Vec2], nb: &Neighborhood) {
     vel.par_chunks_mut(LANES).enumerate().for_each(|(b, v)| {
-        let dv = block_pressure_dv(b, volume, kappa, nb);
-        for (v, dv) in v.iter_mut().zip(dv) {
-            *v += dv;
-        }
+        nb.blocks
+            .apply_block(b, volume, kappa, nb.grad_sum, v, None)
     });
 }
 
@@ -251,14 +235,10 @@ fn apply_increment(
 ) {
     vel.par_chunks_mut(LANES)
         .zip(total.par_chunks_mut(LANES))
-        .zip(increment.par_chunks(LANES))
         .enumerate()
-        .for_each(|(b, ((v, t), inc))| {
-            let dv = block_pressure_dv(b, volume, increment, nb);
-            for (((v, t), dv), &inc) in v.iter_mut().zip(t).zip(dv).zip(inc) {
-                *v += dv;
-                *t += inc;
-            }
+        .for_each(|(b, (v, t))| {
+            nb.blocks
+                .apply_block(b, volume, increment, nb.grad_sum, v, Some(t))
         });
 }
 
@@ -291,11 +271,16 @@ pub struct SolverScratch {
     delta: Vec<f32>,
     /// The increment applied last, to take an iteration back.
     previous_delta: Vec<f32>,
+    /// Per particle, the residual's part that does not depend on the velocities
+    /// ([`ResidualTerms::source`]).
+    source: Vec<f32>,
 }
 
-/// The Jacobi iteration shared by the density and divergence solves: compute every residual,
-/// stop when the average compression (in percent, after `to_pct`) is within tolerance, else
-/// turn residuals into stiffness increments, apply them, and accumulate them into `total`.
+/// The Jacobi iteration shared by the density and divergence solves: compute every residual
+/// `e_i = max(source_i + rate_scale·Dρ_i/Dt/ρ0, 0)` ([`ResidualTerms`], `source` taken from
+/// `scratch.source`), stop when their average (in percent, after `to_pct`) is within
+/// tolerance, else turn them into stiffness increments `Δκ_i = e_i·a_i·increment_scale`,
+/// apply them, and accumulate them into `total`.
 ///
 /// Only compression is corrected: residuals are clamped at zero, so within one solve a
 /// particle's stiffness only grows. What a previous step left too high is not taken back here;
@@ -307,7 +292,7 @@ fn jacobi_solve(
     nb: &Neighborhood,
     limits: SolveLimits,
     scratch: &mut SolverScratch,
-    residual_of: impl Fn(usize, f32) -> f32 + Sync,
+    rate_scale: f32,
     to_pct: f64,
     increment_scale: f32,
     total: &mut [f32],
@@ -317,25 +302,22 @@ fn jacobi_solve(
     if n == 0 {
         return SolveReport::default();
     }
-    // The residuals, and from them the next Jacobi increment Δκ_i = e_i·a_i (times the
-    // solve's scale), in the same pass.
-    let factor = &fluid.factor;
+    let source = std::mem::take(&mut scratch.source);
+    let terms = ResidualTerms {
+        volume,
+        grad_sum: nb.grad_sum,
+        wall_flux: nb.wall_flux,
+        source: &source,
+        rate_scale,
+        factor: &fluid.factor,
+        increment_scale,
+    };
+    // The residuals, and from them the next Jacobi increment, in the same pass.
     let compute_residuals = |vel: &[Vec2], delta: &mut [f32]| -> (f64, f64) {
         let (sum, max) = delta
             .par_chunks_mut(LANES)
             .enumerate()
-            .map(|(b, d)| {
-                let rates = block_density_rates(b, volume, vel, nb);
-                let (mut sum, mut max) = (0.0f64, 0.0f64);
-                for (l, (d, rate)) in d.iter_mut().zip(rates).enumerate() {
-                    let i = b * LANES + l;
-                    let e = residual_of(i, rate).max(0.0);
-                    *d = e * factor[i] * increment_scale;
-                    sum += e as f64;
-                    max = max.max(e as f64);
-                }
-                (sum, max)
-            })
+            .map(|(b, d)| nb.blocks.residual_block(b, vel, &terms, d))
             .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));
         (sum / n as f64 * to_pct, max * to_pct)
     };
@@ -370,6 +352,7 @@ fn jacobi_solve(
             break;
         }
     }
+    scratch.source = source;
     SolveReport {
         iterations,
         avg_error_pct: avg,
@@ -398,19 +381,29 @@ pub fn divergence_solve(
     } else {
         total.iter_mut().for_each(|k| *k = 0.0);
     }
+    // Particles with too few neighbours for a meaningful rate are left out: their residual
+    // is max(−∞ + rate, 0) = 0.
+    let lists = (nb.fluid, nb.boundary);
+    scratch.source.resize(fluid.len(), 0.0);
+    scratch
+        .source
+        .par_iter_mut()
+        .enumerate()
+        .for_each(|(i, s)| {
+            let neighbors = lists.0.range(i).len() + lists.1.range(i).len();
+            *s = if neighbors < MIN_NEIGHBORS_DIVERGENCE {
+                f32::NEG_INFINITY
+            } else {
+                0.0
+            };
+        });
     let report = jacobi_solve(
         volume,
         fluid,
         nb,
         limits,
         scratch,
-        |i, rate| {
-            if nb.fluid.range(i).len() + nb.boundary.range(i).len() < MIN_NEIGHBORS_DIVERGENCE {
-                0.0
-            } else {
-                rate
-            }
-        },
+        1.0,
         dt as f64 * 100.0,
         1.0,
         &mut total,
@@ -446,19 +439,23 @@ pub fn density_solve(
     } else {
         total.iter_mut().for_each(|k| *k = 0.0);
     }
-    let density = std::mem::take(&mut fluid.density_ratio);
+    scratch.source.resize(fluid.len(), 0.0);
+    scratch
+        .source
+        .par_iter_mut()
+        .zip(fluid.density_ratio.par_iter())
+        .for_each(|(s, &density)| *s = (density - 1.0).min(max_correction));
     let report = jacobi_solve(
         volume,
         fluid,
         nb,
         limits,
         scratch,
-        |i, rate| (density[i] - 1.0).min(max_correction) + dt * rate,
+        dt,
         100.0,
         1.0 / dt,
         &mut total,
     );
-    fluid.density_ratio = density;
     total.par_iter_mut().for_each(|k| *k /= dt);
     fluid.pressure_over_rho0 = total;
     report
