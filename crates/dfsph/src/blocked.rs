@@ -37,6 +37,8 @@ pub struct BlockedPairs {
     grad_y: Vec<f32>,
     /// Whether the CPU runs the AVX-512 kernels.
     avx512: bool,
+    /// How those kernels read neighbour values; [`Gather::for_this_cpu`] unless set.
+    gather: Option<Gather>,
     /// Set by [`Self::set_simd`]: stay on the portable path even where AVX-512 exists.
     portable_only: bool,
 }
@@ -82,6 +84,7 @@ impl BlockedPairs {
     pub fn writers(&mut self, blocks_per_writer: usize) -> Vec<BlockWriter<'_>> {
         let blocks = self.blocks();
         let n = self.n;
+        let gather = self.gather();
         let mut out = Vec::with_capacity(blocks.div_ceil(blocks_per_writer));
         let (mut idx, mut gx, mut gy) = (
             &mut self.index[..],
@@ -98,6 +101,7 @@ impl BlockedPairs {
             out.push(BlockWriter {
                 n,
                 avx512: self.avx512,
+                gather,
                 slot_start: &self.slot_start,
                 base: self.slot_start[first] as usize,
                 index: a,
@@ -145,7 +149,7 @@ impl BlockedPairs {
         if self.avx512 {
             // SAFETY: the CPU has AVX-512F (checked in `prepare`), and every index is below
             // `self.n <= s.len()` (checked when written, `BlockWriter::lane_indices`).
-            return unsafe { avx512::weighted_gradient_sums(idx, gx, gy, s) };
+            return unsafe { avx512::weighted_gradient_sums(idx, gx, gy, s, self.gather()) };
         }
         scalar_weighted_gradient_sums(idx, gx, gy, s)
     }
@@ -159,7 +163,7 @@ impl BlockedPairs {
         if self.avx512 {
             // SAFETY: as above; `Vec2` is two consecutive f32, so component c of particle j
             // is element 2j + c of the flat array, below 2·v.len().
-            return unsafe { avx512::velocity_gradient_dots(idx, gx, gy, v) };
+            return unsafe { avx512::velocity_gradient_dots(idx, gx, gy, v, self.gather()) };
         }
         scalar_velocity_gradient_dots(idx, gx, gy, v)
     }
@@ -190,7 +194,9 @@ impl BlockedPairs {
             // SAFETY: AVX-512F is present (checked in `prepare`), every index is below
             // `self.n <= vel.len()` (checked when written), and the per-particle arrays hold
             // the block's `lanes` particles from `b·16` on (asserted above).
-            return unsafe { avx512::residual_block(idx, gx, gy, vel, b * LANES, terms, delta) };
+            return unsafe {
+                avx512::residual_block(idx, gx, gy, vel, b * LANES, terms, delta, self.gather())
+            };
         }
         let fluid = scalar_velocity_gradient_dots(idx, gx, gy, vel);
         let (mut sum, mut max) = (0.0f64, 0.0f64);
@@ -228,7 +234,18 @@ impl BlockedPairs {
             // SAFETY: AVX-512F is present, every index is below `self.n <= kappa.len()`,
             // and `kappa`, `grad_sum` hold the block's particles (asserted above).
             return unsafe {
-                avx512::apply_block(idx, gx, gy, kappa, b * LANES, grad_sum, volume, vel, total)
+                avx512::apply_block(
+                    idx,
+                    gx,
+                    gy,
+                    kappa,
+                    b * LANES,
+                    grad_sum,
+                    volume,
+                    vel,
+                    total,
+                    self.gather(),
+                )
             };
         }
         let (sx, sy) = scalar_weighted_gradient_sums(idx, gx, gy, kappa);
@@ -282,7 +299,18 @@ impl BlockedPairs {
             // SAFETY: AVX-512F is present (checked in `prepare`), and every index is below
             // `self.n <= pos.len(), vel.len()` (checked when written).
             return unsafe {
-                avx512::advected_kernel_sums(b, idx, &xi, pos, vel, dt, kernel, volume, start)
+                avx512::advected_kernel_sums(
+                    b,
+                    idx,
+                    &xi,
+                    pos,
+                    vel,
+                    dt,
+                    kernel,
+                    volume,
+                    start,
+                    self.gather(),
+                )
             };
         }
         let support2 = kernel.support() * kernel.support();
@@ -327,7 +355,20 @@ impl BlockedPairs {
             // SAFETY: AVX-512F is present (checked in `prepare`), the slices hold whole
             // slots, and every index is below `self.n <= pos.len(), vel.len()`.
             return unsafe {
-                avx512::viscosity_sums(b, idx, gx, gy, &xi, &vi, pos, vel, kernel, eps2, laplacian)
+                avx512::viscosity_sums(
+                    b,
+                    idx,
+                    gx,
+                    gy,
+                    &xi,
+                    &vi,
+                    pos,
+                    vel,
+                    kernel,
+                    eps2,
+                    laplacian,
+                    self.gather(),
+                )
             };
         }
         let mut smooth = [Vec2::ZERO; LANES];
@@ -355,6 +396,16 @@ impl BlockedPairs {
         self.portable_only = !on;
         self.avx512 = on && simd_available();
     }
+
+    /// Read neighbour values the given way in the SIMD kernels rather than the one
+    /// [`Gather::for_this_cpu`] picks (tests and benchmarks compare the two).
+    pub fn set_gather(&mut self, gather: Gather) {
+        self.gather = Some(gather);
+    }
+
+    fn gather(&self) -> Gather {
+        self.gather.unwrap_or_else(Gather::for_this_cpu)
+    }
 }
 
 /// Writes the lanes of some consecutive blocks of a [`BlockedPairs`].
@@ -363,6 +414,7 @@ pub struct BlockWriter<'a> {
     n: usize,
     /// Whether to run the AVX-512 kernels.
     avx512: bool,
+    gather: Gather,
     slot_start: &'a [u32],
     /// First slot of the writer's first block.
     base: usize,
@@ -458,7 +510,19 @@ impl BlockWriter<'_> {
             // SAFETY: AVX-512F is present (checked in `prepare`), the slices hold `width`
             // slots, and every index is below `self.n <= pos.len()` (`lane_indices`).
             return unsafe {
-                avx512::fluid_sums(idx, gx, gy, &lens, &xi, &yi, pos, kernel, volume, start)
+                avx512::fluid_sums(
+                    idx,
+                    gx,
+                    gy,
+                    &lens,
+                    &xi,
+                    &yi,
+                    pos,
+                    kernel,
+                    volume,
+                    start,
+                    self.gather,
+                )
             };
         }
         let mut sums = FluidSums {
@@ -545,6 +609,40 @@ pub fn simd_available() -> bool {
     }
 }
 
+/// How the AVX-512 pair loops read the 16 neighbour values of a slot. Both read the same
+/// values, so results do not depend on the choice.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Gather {
+    /// One gather instruction (two for `(x, y)` pairs): the fast way on Intel.
+    #[default]
+    Instruction,
+    /// Sixteen ordinary loads into a buffer, then one vector load. AMD Zen 4 runs gathers as
+    /// long microcoded sequences: there a slot's 16 loads took 4.3 ns against 5.2 ns for a
+    /// gather of 16 f32, and 5.6 ns against 9.6 ns for 16 `(x, y)` pairs (one thread, a
+    /// synthetic loop over 80k particles' slots).
+    Loads,
+}
+
+impl Gather {
+    /// The faster way on this CPU: [`Gather::Loads`] on AMD processors, else
+    /// [`Gather::Instruction`].
+    pub fn for_this_cpu() -> Gather {
+        #[cfg(target_arch = "x86_64")]
+        {
+            static AMD: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+            let amd = *AMD.get_or_init(|| {
+                // Leaf 0: the vendor string, "AuthenticAMD" in ebx, edx, ecx.
+                let id = std::arch::x86_64::__cpuid(0);
+                (id.ebx, id.edx, id.ecx) == (0x6874_7541, 0x6974_6e65, 0x444d_4163)
+            });
+            if amd {
+                return Gather::Loads;
+            }
+        }
+        Gather::Instruction
+    }
+}
+
 /// Calls `pair(lane, j, ∇W)` for every slot of a block, slot by slot: the portable path's
 /// walk, in the same order as the SIMD one.
 #[inline]
@@ -587,7 +685,7 @@ fn scalar_velocity_gradient_dots(idx: &[u32], gx: &[f32], gy: &[f32], v: &[Vec2]
 
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod avx512 {
-    use super::{FluidSums, LANES};
+    use super::{FluidSums, Gather, LANES};
     use crate::kernel::CubicSpline;
     use glam::Vec2;
     use std::arch::x86_64::*;
@@ -612,6 +710,7 @@ pub(crate) mod avx512 {
         kernel: &CubicSpline,
         volume: f32,
         start: f32,
+        gather: Gather,
     ) -> FluidSums {
         let (k, l, inv_h) = kernel.constants();
         let base = pos.as_ptr() as *const f32;
@@ -626,7 +725,7 @@ pub(crate) mod avx512 {
         );
         for (s, kk) in (0..idx.len()).step_by(LANES).enumerate() {
             let j = _mm512_loadu_si512(idx.as_ptr().add(kk) as *const _);
-            let (xj, yj) = gather_xy(j, base);
+            let (xj, yj) = gather_xy(j, idx.as_ptr().add(kk), base, gather);
             let (rx, ry) = (_mm512_sub_ps(xi, xj), _mm512_sub_ps(yi, yj));
             let rl = _mm512_sqrt_ps(_mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry)));
             let q = _mm512_mul_ps(rl, c(inv_h));
@@ -710,6 +809,7 @@ pub(crate) mod avx512 {
         kernel: &CubicSpline,
         volume: f32,
         start: f32,
+        gather: Gather,
     ) -> [f32; LANES] {
         let (k, _, inv_h) = kernel.constants();
         let c = |v: f32| _mm512_set1_ps(v);
@@ -722,7 +822,11 @@ pub(crate) mod avx512 {
         for kk in (0..idx.len()).step_by(LANES) {
             let j = _mm512_loadu_si512(idx.as_ptr().add(kk) as *const _);
             // x_j + Δt·v_j, multiply then add, as the scalar `Vec2` expression.
-            let ((px, py), (vx, vy)) = (gather_xy(j, pbase), gather_xy(j, vbase));
+            let at = idx.as_ptr().add(kk);
+            let ((px, py), (vx, vy)) = (
+                gather_xy(j, at, pbase, gather),
+                gather_xy(j, at, vbase, gather),
+            );
             let xj = _mm512_add_ps(px, _mm512_mul_ps(dtv, vx));
             let yj = _mm512_add_ps(py, _mm512_mul_ps(dtv, vy));
             let (rx, ry) = (_mm512_sub_ps(xi_x, xj), _mm512_sub_ps(xi_y, yj));
@@ -738,20 +842,55 @@ pub(crate) mod avx512 {
         out
     }
 
-    /// The `Vec2` entries `j` (16 indices) of the flat array at `base`, as x and y vectors:
-    /// two gathers of 8 64-bit (x, y) pairs and a de-interleave. A gather costs about one
-    /// load per element, so this reads 16 pairs for the price of 16 elements where
-    /// separate x and y gathers cost 32.
+    /// The `Vec2` entries `j` (16 indices, also at `at` in memory) of the flat array at
+    /// `base`, as x and y vectors: 16 64-bit `(x, y)` pairs, de-interleaved. With
+    /// [`Gather::Instruction`], two gathers of 8 pairs: a gather costs about one load per
+    /// element, so this reads 16 pairs for the price of 16 elements where separate x and y
+    /// gathers cost 32.
     #[inline]
     #[target_feature(enable = "avx512f")]
-    unsafe fn gather_xy(j: __m512i, base: *const f32) -> (__m512, __m512) {
-        let base = base as *const i64;
-        let lo = _mm512_castsi512_ps(_mm512_i32gather_epi64::<8>(_mm512_castsi512_si256(j), base));
-        let hi = _mm512_castsi512_ps(_mm512_i32gather_epi64::<8>(
-            _mm512_extracti64x4_epi64::<1>(j),
-            base,
-        ));
+    unsafe fn gather_xy(
+        j: __m512i,
+        at: *const u32,
+        base: *const f32,
+        gather: Gather,
+    ) -> (__m512, __m512) {
+        let (lo, hi) = match gather {
+            Gather::Instruction => {
+                let base = base as *const i64;
+                let half = |j| _mm512_castsi512_ps(_mm512_i32gather_epi64::<8>(j, base));
+                (
+                    half(_mm512_castsi512_si256(j)),
+                    half(_mm512_extracti64x4_epi64::<1>(j)),
+                )
+            }
+            Gather::Loads => {
+                let base = base as *const u64;
+                let mut pairs = [0u64; LANES];
+                for (l, pair) in pairs.iter_mut().enumerate() {
+                    *pair = *base.add(*at.add(l) as usize);
+                }
+                let flat = pairs.as_ptr() as *const f32;
+                (_mm512_loadu_ps(flat), _mm512_loadu_ps(flat.add(16)))
+            }
+        };
         deinterleave(lo, hi)
+    }
+
+    /// The f32 entries `j` (16 indices, also at `at` in memory) of the array at `base`.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn gather_f32(j: __m512i, at: *const u32, base: *const f32, gather: Gather) -> __m512 {
+        match gather {
+            Gather::Instruction => _mm512_i32gather_ps::<4>(j, base),
+            Gather::Loads => {
+                let mut values = [0.0f32; LANES];
+                for (l, value) in values.iter_mut().enumerate() {
+                    *value = *base.add(*at.add(l) as usize);
+                }
+                _mm512_loadu_ps(values.as_ptr())
+            }
+        }
     }
 
     /// 16 lanes of `(x, y)` pairs as two vectors of x and of y.
@@ -801,6 +940,7 @@ pub(crate) mod avx512 {
         kernel: &CubicSpline,
         eps2: f32,
         laplacian: bool,
+        gather: Gather,
     ) -> ([Vec2; LANES], [Vec2; LANES]) {
         let (k, _, inv_h) = kernel.constants();
         let c = |v: f32| _mm512_set1_ps(v);
@@ -813,7 +953,11 @@ pub(crate) mod avx512 {
         for kk in (0..idx.len()).step_by(LANES) {
             let j = _mm512_loadu_si512(idx.as_ptr().add(kk) as *const _);
             let pair = _mm512_cmpneq_epi32_mask(j, own);
-            let ((xj, yj), (vxj, vyj)) = (gather_xy(j, pbase), gather_xy(j, vbase));
+            let at = idx.as_ptr().add(kk);
+            let ((xj, yj), (vxj, vyj)) = (
+                gather_xy(j, at, pbase, gather),
+                gather_xy(j, at, vbase, gather),
+            );
             let (rx, ry) = (_mm512_sub_ps(xi_x, xj), _mm512_sub_ps(xi_y, yj));
             let (ux, uy) = (_mm512_sub_ps(vi_x, vxj), _mm512_sub_ps(vi_y, vyj));
             let r2 = _mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry));
@@ -900,6 +1044,7 @@ pub(crate) mod avx512 {
     /// The CPU must have AVX-512F, the three slices the same length (a multiple of 16),
     /// every index below `vel.len()`, and `vel` and the arrays of `terms` must hold the
     /// `delta.len()` (≤ 16) particles from `first` on.
+    #[allow(clippy::too_many_arguments)]
     #[target_feature(enable = "avx512f")]
     pub unsafe fn residual_block(
         idx: &[u32],
@@ -909,9 +1054,10 @@ pub(crate) mod avx512 {
         first: usize,
         terms: &super::ResidualTerms,
         delta: &mut [f32],
+        gather: Gather,
     ) -> (f64, f64) {
         let lanes = delta.len();
-        let fluid = velocity_gradient_dot_lanes(idx, gx, gy, vel);
+        let fluid = velocity_gradient_dot_lanes(idx, gx, gy, vel, gather);
         let m = lane_mask(lanes);
         let c = |v: f32| _mm512_set1_ps(v);
         let load = |a: &[f32]| _mm512_maskz_loadu_ps(m, a.as_ptr().add(first));
@@ -963,9 +1109,10 @@ pub(crate) mod avx512 {
         volume: f32,
         vel: &mut [Vec2],
         total: Option<&mut [f32]>,
+        gather: Gather,
     ) {
         let lanes = vel.len();
-        let (sx, sy) = weighted_gradient_sum_lanes(idx, gx, gy, kappa);
+        let (sx, sy) = weighted_gradient_sum_lanes(idx, gx, gy, kappa, gather);
         let m = lane_mask(lanes);
         let ki = _mm512_maskz_loadu_ps(m, kappa.as_ptr().add(first));
         let (gsx, gsy) = load_pairs(grad_sum.as_ptr().add(first), lanes);
@@ -1004,12 +1151,13 @@ pub(crate) mod avx512 {
         gx: &[f32],
         gy: &[f32],
         s: &[f32],
+        gather: Gather,
     ) -> (__m512, __m512) {
         let mut ax = _mm512_setzero_ps();
         let mut ay = _mm512_setzero_ps();
         for k in (0..idx.len()).step_by(LANES) {
             let j = _mm512_loadu_si512(idx.as_ptr().add(k) as *const _);
-            let sj = _mm512_i32gather_ps::<4>(j, s.as_ptr());
+            let sj = gather_f32(j, idx.as_ptr().add(k), s.as_ptr(), gather);
             ax = _mm512_fmadd_ps(sj, _mm512_loadu_ps(gx.as_ptr().add(k)), ax);
             ay = _mm512_fmadd_ps(sj, _mm512_loadu_ps(gy.as_ptr().add(k)), ay);
         }
@@ -1024,8 +1172,9 @@ pub(crate) mod avx512 {
         gx: &[f32],
         gy: &[f32],
         s: &[f32],
+        gather: Gather,
     ) -> ([f32; LANES], [f32; LANES]) {
-        let (ax, ay) = weighted_gradient_sum_lanes(idx, gx, gy, s);
+        let (ax, ay) = weighted_gradient_sum_lanes(idx, gx, gy, s, gather);
         let mut out = ([0.0f32; LANES], [0.0f32; LANES]);
         _mm512_storeu_ps(out.0.as_mut_ptr(), ax);
         _mm512_storeu_ps(out.1.as_mut_ptr(), ay);
@@ -1043,6 +1192,7 @@ pub(crate) mod avx512 {
         gx: &[f32],
         gy: &[f32],
         v: &[Vec2],
+        gather: Gather,
     ) -> __m512 {
         let base = v.as_ptr() as *const f32;
         // Two accumulators, so that consecutive multiply-adds do not wait for each other.
@@ -1051,7 +1201,7 @@ pub(crate) mod avx512 {
         for k in (0..idx.len()).step_by(LANES) {
             let j = _mm512_loadu_si512(idx.as_ptr().add(k) as *const _);
             // Pair j of the flat array is v_j; the gather's scale of 8 bytes steps by Vec2.
-            let (vx, vy) = gather_xy(j, base);
+            let (vx, vy) = gather_xy(j, idx.as_ptr().add(k), base, gather);
             ax = _mm512_fmadd_ps(vx, _mm512_loadu_ps(gx.as_ptr().add(k)), ax);
             ay = _mm512_fmadd_ps(vy, _mm512_loadu_ps(gy.as_ptr().add(k)), ay);
         }
@@ -1066,12 +1216,11 @@ pub(crate) mod avx512 {
         gx: &[f32],
         gy: &[f32],
         v: &[Vec2],
+        gather: Gather,
     ) -> [f32; LANES] {
         let mut out = [0.0f32; LANES];
-        _mm512_storeu_ps(
-            out.as_mut_ptr(),
-            velocity_gradient_dot_lanes(idx, gx, gy, v),
-        );
+        let dots = velocity_gradient_dot_lanes(idx, gx, gy, v, gather);
+        _mm512_storeu_ps(out.as_mut_ptr(), dots);
         out
     }
 }
@@ -1236,6 +1385,67 @@ mod tests {
                 assert!(delta.iter().any(|&d| d > 0.0), "simd {simd}: a real test");
             }
         }
+    }
+
+    /// Gather instructions and plain loads read the same values, so every SIMD kernel must
+    /// give the same bits either way. (Without AVX-512 both runs take the portable path.)
+    #[test]
+    fn gathers_and_loads_give_identical_bits() {
+        let n = 333;
+        let (lists, grads) = random_lists(n);
+        let val = |k: usize, salt: u64| unit(k as u64 * 5 + salt) - 0.4;
+        let s: Vec<f32> = (0..n).map(|k| val(k, 1)).collect();
+        let pos: Vec<Vec2> = (0..n)
+            .map(|k| Vec2::new(val(k, 2), val(k, 3)) * 0.05)
+            .collect();
+        let vel: Vec<Vec2> = (0..n).map(|k| Vec2::new(val(k, 4), val(k, 5))).collect();
+        let kernel = CubicSpline::new(0.04);
+        let run = |gather: Gather| {
+            let mut blocks = BlockedPairs::default();
+            blocks.set_gather(gather);
+            blocks.build(&lists, &grads);
+            let mut bits = Vec::new();
+            let mut push = |v: &[f32]| bits.extend(v.iter().map(|x| x.to_bits()));
+            for b in 0..blocks.blocks() {
+                let (sx, sy) = blocks.weighted_gradient_sums(b, &s);
+                push(&sx);
+                push(&sy);
+                push(&blocks.velocity_gradient_dots(b, &vel));
+                push(&blocks.advected_kernel_sums(b, &pos, &vel, 1e-3, &kernel, 0.5, 0.1));
+                let (smooth, laplace) = blocks.viscosity_sums(b, &pos, &vel, &kernel, 1e-6, true);
+                for v in smooth.iter().chain(&laplace) {
+                    push(&[v.x, v.y]);
+                }
+            }
+            let mut writer_sums = Vec::new();
+            let mut filled = BlockedPairs::default();
+            filled.set_gather(gather);
+            filled.prepare(&lists);
+            for (b, mut w) in filled.writers(1).into_iter().enumerate() {
+                let sums = w.fill_block(b, &lists, &pos, &kernel, 0.5, 0.1);
+                writer_sums.extend(
+                    sums.density
+                        .iter()
+                        .chain(&sums.grad_sq)
+                        .map(|x| x.to_bits()),
+                );
+            }
+            bits.extend(writer_sums);
+            bits.extend(
+                filled
+                    .grad_x
+                    .iter()
+                    .chain(&filled.grad_y)
+                    .map(|x| x.to_bits()),
+            );
+            bits
+        };
+        let (instruction, loads) = (run(Gather::Instruction), run(Gather::Loads));
+        assert_eq!(instruction.len(), loads.len());
+        assert!(
+            instruction == loads,
+            "the two ways of reading neighbours differ"
+        );
     }
 
     #[test]
