@@ -251,8 +251,11 @@ pub struct Row {
     pub cpu: String,
     /// SIMD features the binary was compiled for (`-C target-cpu`), e.g. `sse2` or `avx2`.
     pub compiled_simd: String,
-    /// What the solver's pair loops run on this CPU: `avx512f` (detected at run time) or
-    /// `portable`. Empty in rows saved before it was recorded.
+    /// What the solver's pair loops run on this CPU: `avx512f-gathers` or `avx512f-loads`
+    /// (AVX-512F detected at run time; neighbour values read with gather instructions, or
+    /// with plain loads on AMD, see `dfsph::blocked::Gather`) or `portable`. `avx512f` in
+    /// rows saved before the two were told apart (those always gathered); empty in rows
+    /// saved before it was recorded.
     #[serde(default)]
     pub runtime_simd: String,
     /// Wall seconds of every run of this row; the row's other numbers are the median run's.

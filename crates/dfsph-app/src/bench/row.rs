@@ -154,11 +154,7 @@ pub fn base_row(code: Code, args: &RowArgs, n: usize, n_boundary: usize) -> Row 
         float: "f32".into(),
         cpu: cpu_model(),
         compiled_simd: compiled_simd(),
-        runtime_simd: if dfsph::blocked::simd_available() {
-            "avx512f".into()
-        } else {
-            "portable".into()
-        },
+        runtime_simd: runtime_simd(),
         wall_seconds_runs: Vec::new(),
     }
 }
@@ -234,6 +230,16 @@ fn cpu_model() -> String {
 }
 
 /// The widest SIMD level the compiler was allowed to use.
+/// What the solver's pair loops run on this CPU, and how they read neighbour values.
+fn runtime_simd() -> String {
+    use dfsph::blocked::{simd_available, Gather};
+    match (simd_available(), Gather::for_this_cpu()) {
+        (false, _) => "portable".into(),
+        (true, Gather::Instruction) => "avx512f-gathers".into(),
+        (true, Gather::Loads) => "avx512f-loads".into(),
+    }
+}
+
 fn compiled_simd() -> String {
     if cfg!(target_feature = "avx512f") {
         "avx512f"
