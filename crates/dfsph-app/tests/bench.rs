@@ -73,10 +73,13 @@ fn quick_bench_writes_sane_json_rows() {
         assert_eq!(num("non_finite"), 0.0);
         assert_eq!(num("leaked"), 0.0);
         assert!(num("retries") >= 0.0, "retries are reported: {row}");
-        let expected = if dfsph::blocked::simd_available() {
-            "avx512f"
-        } else {
-            "portable"
+        let expected = match (
+            dfsph::blocked::simd_available(),
+            dfsph::blocked::Gather::for_this_cpu(),
+        ) {
+            (false, _) => "portable",
+            (true, dfsph::blocked::Gather::Instruction) => "avx512f-gathers",
+            (true, dfsph::blocked::Gather::Loads) => "avx512f-loads",
         };
         assert_eq!(row["runtime_simd"], expected, "{row}");
     }
