@@ -61,18 +61,22 @@ impl BlockedPairs {
         self.n = n;
         self.avx512 = !self.portable_only && simd_available();
         let blocks = n.div_ceil(LANES);
-        self.slot_start.clear();
-        self.slot_start.push(0);
-        let mut total = 0u32;
+        // Each block's width (its longest list) in parallel, then their running sum.
+        self.slot_start.resize(blocks + 1, 0);
+        self.slot_start[0] = 0;
+        self.slot_start[1..]
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(b, width)| {
+                *width = (b * LANES..((b + 1) * LANES).min(n))
+                    .map(|i| lists.offsets[i + 1] - lists.offsets[i])
+                    .max()
+                    .unwrap_or(0);
+            });
         for b in 0..blocks {
-            let longest = (b * LANES..((b + 1) * LANES).min(n))
-                .map(|i| lists.offsets[i + 1] - lists.offsets[i])
-                .max()
-                .unwrap_or(0);
-            total += longest;
-            self.slot_start.push(total);
+            self.slot_start[b + 1] += self.slot_start[b];
         }
-        let entries = total as usize * LANES;
+        let entries = self.slot_start[blocks] as usize * LANES;
         self.index.resize(entries, 0);
         self.grad_x.resize(entries, 0.0);
         self.grad_y.resize(entries, 0.0);
