@@ -383,14 +383,13 @@ pub fn divergence_solve(
     }
     // Particles with too few neighbours for a meaningful rate are left out: their residual
     // is max(−∞ + rate, 0) = 0.
-    let lists = (nb.fluid, nb.boundary);
     scratch.source.resize(fluid.len(), 0.0);
     scratch
         .source
         .par_iter_mut()
         .enumerate()
         .for_each(|(i, s)| {
-            let neighbors = lists.0.range(i).len() + lists.1.range(i).len();
+            let neighbors = nb.fluid.range(i).len() + nb.boundary.range(i).len();
             *s = if neighbors < MIN_NEIGHBORS_DIVERGENCE {
                 f32::NEG_INFINITY
             } else {

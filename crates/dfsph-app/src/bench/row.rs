@@ -229,7 +229,6 @@ fn cpu_model() -> String {
         .unwrap_or_else(|| "unknown".into())
 }
 
-/// The widest SIMD level the compiler was allowed to use.
 /// What the solver's pair loops run on this CPU, and how they read neighbour values.
 fn runtime_simd() -> String {
     use dfsph::blocked::{simd_available, Gather};
@@ -240,6 +239,7 @@ fn runtime_simd() -> String {
     }
 }
 
+/// The widest SIMD level the compiler was allowed to use.
 fn compiled_simd() -> String {
     if cfg!(target_feature = "avx512f") {
         "avx512f"
