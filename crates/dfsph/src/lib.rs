@@ -25,6 +25,7 @@ pub mod neighbors;
 pub mod particles;
 pub mod probes;
 pub mod recording;
+pub mod reduce;
 pub mod scene;
 pub mod simulation;
 pub mod solver;

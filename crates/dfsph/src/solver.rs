@@ -24,6 +24,7 @@ use crate::blocked::{BlockedPairs, ResidualTerms, LANES};
 use crate::kernel::CubicSpline;
 use crate::neighbors::NeighborLists;
 use crate::particles::{BoundaryParticles, FluidParticles};
+use crate::reduce;
 
 /// What [`density_and_factor`] caches for the rest of a step, valid while positions do not
 /// change.
@@ -312,13 +313,31 @@ fn jacobi_solve(
         factor: &fluid.factor,
         increment_scale,
     };
-    // The residuals, and from them the next Jacobi increment, in the same pass.
+    // The residuals, and from them the next Jacobi increment, in the same pass. Their sum
+    // decides when to stop, so it is taken in an order that does not depend on the work
+    // split (`reduce`).
+    let blocks_per_part = reduce::part_units(n.div_ceil(LANES), 16);
     let compute_residuals = |vel: &[Vec2], delta: &mut [f32]| -> (f64, f64) {
-        let (sum, max) = delta
-            .par_chunks_mut(LANES)
+        let mut parts = [(0.0, 0.0); reduce::MAX_PARTS];
+        delta
+            .par_chunks_mut(LANES * blocks_per_part)
+            .zip(parts.par_iter_mut())
             .enumerate()
-            .map(|(b, d)| nb.blocks.residual_block(b, vel, &terms, d))
-            .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));
+            .for_each(|(p, (d, part))| {
+                *part = d
+                    .chunks_mut(LANES)
+                    .enumerate()
+                    .map(|(k, d)| {
+                        nb.blocks
+                            .residual_block(p * blocks_per_part + k, vel, &terms, d)
+                    })
+                    .fold((0.0, 0.0), reduce::add_sum_max);
+            });
+        let used = n.div_ceil(LANES * blocks_per_part);
+        let (sum, max) = parts[..used]
+            .iter()
+            .copied()
+            .fold((0.0, 0.0), reduce::add_sum_max);
         (sum / n as f64 * to_pct, max * to_pct)
     };
     let (mut avg, mut max) = compute_residuals(&fluid.velocity, &mut scratch.delta);
@@ -490,14 +509,7 @@ pub fn wcsph_pressure(
             *k = dt * *p / (s * s);
         });
     apply_pressure(volume, &scratch.delta, &mut fluid.velocity, nb);
-    let (sum, max) = fluid
-        .density_ratio
-        .par_iter()
-        .map(|&s| {
-            let e = (s - 1.0).max(0.0) as f64;
-            (e, e)
-        })
-        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));
+    let (sum, max) = reduce::sum_and_max(&fluid.density_ratio, |&s| (s - 1.0).max(0.0) as f64);
     SolveReport {
         iterations: 0,
         avg_error_pct: if n > 0 { sum / n as f64 * 100.0 } else { 0.0 },
