@@ -179,9 +179,9 @@ impl BlockedPairs {
     }
 
     /// The residual pass of one Jacobi iteration over block `b` (see [`ResidualTerms`]):
-    /// writes `Δκ_i` of the block's particles into `delta` (one entry per particle of the
-    /// block) and returns the sum and the largest of their residuals `e_i`, the sum taken
-    /// lane by lane in f64.
+    /// writes the relative density rates `r_i` of the block's particles into `rate` and
+    /// their `Δκ_i` into `delta` (one entry per particle of the block in each), and returns
+    /// the sum and the largest of their residuals `e_i`, the sum taken lane by lane in f64.
     #[inline]
     pub fn residual_block(
         &self,
@@ -189,9 +189,11 @@ impl BlockedPairs {
         vel: &[Vec2],
         terms: &ResidualTerms,
         delta: &mut [f32],
+        rate: &mut [f32],
     ) -> (f64, f64) {
         let lanes = self.lanes_of(b);
-        assert!(vel.len() >= self.n && terms.holds(self.n) && delta.len() == lanes);
+        assert!(vel.len() >= self.n && terms.holds(self.n));
+        assert!(delta.len() == lanes && rate.len() == lanes);
         let (idx, gx, gy) = self.block(b);
         #[cfg(target_arch = "x86_64")]
         if self.avx512 {
@@ -199,15 +201,25 @@ impl BlockedPairs {
             // `self.n <= vel.len()` (checked when written), and the per-particle arrays hold
             // the block's `lanes` particles from `b·16` on (asserted above).
             return unsafe {
-                avx512::residual_block(idx, gx, gy, vel, b * LANES, terms, delta, self.gather())
+                avx512::residual_block(
+                    idx,
+                    gx,
+                    gy,
+                    vel,
+                    b * LANES,
+                    terms,
+                    delta,
+                    rate,
+                    self.gather(),
+                )
             };
         }
         let fluid = scalar_velocity_gradient_dots(idx, gx, gy, vel);
         let (mut sum, mut max) = (0.0f64, 0.0f64);
-        for (l, d) in delta.iter_mut().enumerate() {
+        for (l, (d, r)) in delta.iter_mut().zip(rate.iter_mut()).enumerate() {
             let i = b * LANES + l;
-            let rate = vel[i].dot(terms.grad_sum[i]) - terms.volume * fluid[l] - terms.wall_flux[i];
-            let e = (terms.source[i] + terms.rate_scale * rate).max(0.0);
+            *r = vel[i].dot(terms.grad_sum[i]) - terms.volume * fluid[l] - terms.wall_flux[i];
+            let e = (terms.source[i] + terms.rate_scale * *r).max(0.0);
             *d = e * terms.factor[i] * terms.increment_scale;
             sum += e as f64;
             max = max.max(e as f64);
@@ -1046,8 +1058,8 @@ pub(crate) mod avx512 {
     ///
     /// # Safety
     /// The CPU must have AVX-512F, the three slices the same length (a multiple of 16),
-    /// every index below `vel.len()`, and `vel` and the arrays of `terms` must hold the
-    /// `delta.len()` (≤ 16) particles from `first` on.
+    /// every index below `vel.len()`, `vel` and the arrays of `terms` must hold the
+    /// `delta.len()` (≤ 16) particles from `first` on, and `rate` as many entries as `delta`.
     #[allow(clippy::too_many_arguments)]
     #[target_feature(enable = "avx512f")]
     pub unsafe fn residual_block(
@@ -1058,6 +1070,7 @@ pub(crate) mod avx512 {
         first: usize,
         terms: &super::ResidualTerms,
         delta: &mut [f32],
+        rate: &mut [f32],
         gather: Gather,
     ) -> (f64, f64) {
         let lanes = delta.len();
@@ -1069,13 +1082,14 @@ pub(crate) mod avx512 {
         let (gsx, gsy) = load_pairs(terms.grad_sum.as_ptr().add(first), lanes);
         // v_i·g_i as glam's `dot`: x·x' + y·y'.
         let dot = _mm512_add_ps(_mm512_mul_ps(vx, gsx), _mm512_mul_ps(vy, gsy));
-        let rate = _mm512_sub_ps(
+        let r = _mm512_sub_ps(
             _mm512_sub_ps(dot, _mm512_mul_ps(c(terms.volume), fluid)),
             load(terms.wall_flux),
         );
+        _mm512_mask_storeu_ps(rate.as_mut_ptr(), m, r);
         // `max` returns its second operand, 0, for a NaN, as `f32::max` does.
         let e = _mm512_max_ps(
-            _mm512_add_ps(load(terms.source), _mm512_mul_ps(c(terms.rate_scale), rate)),
+            _mm512_add_ps(load(terms.source), _mm512_mul_ps(c(terms.rate_scale), r)),
             _mm512_setzero_ps(),
         );
         let d = _mm512_mul_ps(
@@ -1341,9 +1355,16 @@ mod tests {
                 let mut moved = vel.clone();
                 let mut total: Vec<f32> = (0..n).map(|k| val(k, 9)).collect();
                 let mut delta = vec![0.0f32; n];
+                let mut rates = vec![0.0f32; n];
                 for b in 0..blocks.blocks() {
                     let r = b * LANES..((b + 1) * LANES).min(n);
-                    let (sum, max) = blocks.residual_block(b, &vel, &terms, &mut delta[r.clone()]);
+                    let (sum, max) = blocks.residual_block(
+                        b,
+                        &vel,
+                        &terms,
+                        &mut delta[r.clone()],
+                        &mut rates[r.clone()],
+                    );
                     blocks.apply_block(
                         b,
                         terms.volume,
@@ -1358,6 +1379,7 @@ mod tests {
                     for i in r {
                         let l = i - b * LANES;
                         let rate = vel[i].dot(grad_sum[i]) - 0.7 * dots[l] - wall_flux[i];
+                        assert_eq!(rates[i].to_bits(), rate.to_bits(), "simd {simd}, {i}");
                         let e = (source[i] + 0.25 * rate).max(0.0);
                         let d = e * factor[i] * 3.0;
                         assert_eq!(delta[i].to_bits(), d.to_bits(), "simd {simd}, n {n}, {i}");

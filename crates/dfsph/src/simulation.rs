@@ -417,6 +417,7 @@ impl Simulation {
                         &self.fluid,
                         &self.boundary,
                         &nb,
+                        self.solver_scratch.density_rates(),
                     ) as f64
             } else {
                 0.0

@@ -198,21 +198,30 @@ fn split_by_chunk<'a, T>(values: &'a mut [T], lists: &NeighborLists) -> Vec<&'a 
 }
 
 /// Relative rates of density change `Dρ_i/Dt / ρ0 = Σ_j V_j (v_i − v_j)·∇W_ij +
-/// Σ_b Ψ_b (v_i − v_b)·∇W_ib` (continuity equation, TVCG 2017 eq. 7), in 1/s, of the 16
-/// particles of block `b` (lanes past the last particle read 0). Written as
-/// `v_i·(Σ_j V_j ∇W_ij + Σ_b Ψ_b ∇W_ib) − V Σ_j v_j·∇W_ij − Σ_b Ψ_b v_b·∇W_ib`, whose first and
-/// last terms are cached for the step, so that an iteration reads no wall pairs.
-#[inline]
-fn block_density_rates(b: usize, volume: f32, vel: &[Vec2], nb: &Neighborhood) -> [f32; LANES] {
-    let fluid = nb.blocks.velocity_gradient_dots(b, vel);
-    std::array::from_fn(|l| {
-        let i = b * LANES + l;
-        if i < vel.len() {
-            vel[i].dot(nb.grad_sum[i]) - volume * fluid[l] - nb.wall_flux[i]
-        } else {
-            0.0
-        }
-    })
+/// Σ_b Ψ_b (v_i − v_b)·∇W_ib` (continuity equation, TVCG 2017 eq. 7), in 1/s, of every fluid
+/// particle at the velocities `vel`: one residual pass ([`BlockedPairs::residual_block`]) with
+/// no source and no increment. (A solve leaves these in [`SolverScratch::density_rates`].)
+pub fn density_rates(volume: f32, vel: &[Vec2], nb: &Neighborhood) -> Vec<f32> {
+    let n = vel.len();
+    let (zeros, mut unused) = (vec![0.0f32; n], vec![0.0f32; n]);
+    let terms = ResidualTerms {
+        volume,
+        grad_sum: nb.grad_sum,
+        wall_flux: nb.wall_flux,
+        source: &zeros,
+        rate_scale: 1.0,
+        factor: &zeros,
+        increment_scale: 0.0,
+    };
+    let mut rates = vec![0.0f32; n];
+    rates
+        .par_chunks_mut(LANES)
+        .zip(unused.par_chunks_mut(LANES))
+        .enumerate()
+        .for_each(|(b, (r, d))| {
+            nb.blocks.residual_block(b, vel, &terms, d, r);
+        });
+    rates
 }
 
 /// Apply `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − κ_i Σ_b Ψ_b ∇W_ib` to every fluid velocity,
@@ -275,6 +284,21 @@ pub struct SolverScratch {
     /// Per particle, the residual's part that does not depend on the velocities
     /// ([`ResidualTerms::source`]).
     source: Vec<f32>,
+    /// Per particle, the relative density rate at the current velocities, written by each
+    /// residual pass.
+    rate: Vec<f32>,
+    /// The rates before the increment applied last, to take an iteration back.
+    previous_rate: Vec<f32>,
+}
+
+impl SolverScratch {
+    /// Per fluid particle, the relative rate of density change `Dρ_i/Dt/ρ0` (TVCG 2017 eq. 7,
+    /// see [`ResidualTerms`]) at the velocities the last Jacobi solve left. The density
+    /// solve's linearisation check ([`unseen_compression`]) reads them here rather than
+    /// walking every neighbour list again.
+    pub fn density_rates(&self) -> &[f32] {
+        &self.rate
+    }
 }
 
 /// The Jacobi iteration shared by the density and divergence solves: compute every residual
@@ -317,19 +341,22 @@ fn jacobi_solve(
     // decides when to stop, so it is taken in an order that does not depend on the work
     // split (`reduce`).
     let blocks_per_part = reduce::part_units(n.div_ceil(LANES), 16);
-    let compute_residuals = |vel: &[Vec2], delta: &mut [f32]| -> (f64, f64) {
+    let part = LANES * blocks_per_part;
+    let compute_residuals = |vel: &[Vec2], delta: &mut [f32], rate: &mut [f32]| -> (f64, f64) {
         let mut parts = [(0.0, 0.0); reduce::MAX_PARTS];
         delta
-            .par_chunks_mut(LANES * blocks_per_part)
+            .par_chunks_mut(part)
+            .zip(rate.par_chunks_mut(part))
             .zip(parts.par_iter_mut())
             .enumerate()
-            .for_each(|(p, (d, part))| {
-                *part = d
+            .for_each(|(p, ((d, r), sums))| {
+                *sums = d
                     .chunks_mut(LANES)
+                    .zip(r.chunks_mut(LANES))
                     .enumerate()
-                    .map(|(k, d)| {
+                    .map(|(k, (d, r))| {
                         nb.blocks
-                            .residual_block(p * blocks_per_part + k, vel, &terms, d)
+                            .residual_block(p * blocks_per_part + k, vel, &terms, d, r)
                     })
                     .fold((0.0, 0.0), reduce::add_sum_max);
             });
@@ -340,7 +367,9 @@ fn jacobi_solve(
             .fold((0.0, 0.0), reduce::add_sum_max);
         (sum / n as f64 * to_pct, max * to_pct)
     };
-    let (mut avg, mut max) = compute_residuals(&fluid.velocity, &mut scratch.delta);
+    scratch.rate.resize(n, 0.0);
+    let (mut avg, mut max) =
+        compute_residuals(&fluid.velocity, &mut scratch.delta, &mut scratch.rate);
     let mut iterations = 0;
     while (avg > limits.tolerance_pct
         || max > limits.max_error_pct
@@ -351,9 +380,11 @@ fn jacobi_solve(
         // The applied increment is kept to take the iteration back; the residual pass writes
         // the next one into the other buffer.
         std::mem::swap(&mut scratch.delta, &mut scratch.previous_delta);
+        std::mem::swap(&mut scratch.rate, &mut scratch.previous_rate);
         scratch.delta.resize(n, 0.0);
+        scratch.rate.resize(n, 0.0);
         let previous = (avg, max);
-        (avg, max) = compute_residuals(&fluid.velocity, &mut scratch.delta);
+        (avg, max) = compute_residuals(&fluid.velocity, &mut scratch.delta, &mut scratch.rate);
         iterations += 1;
         if avg.is_nan() || avg > DIVERGING_ERROR_GROWTH * previous.0 + limits.tolerance_pct {
             // Jacobi is not guaranteed to converge (dense clusters, e.g. fluid pulled into a
@@ -367,6 +398,8 @@ fn jacobi_solve(
                 total,
                 nb,
             );
+            // The velocities are back where the previous pass read them.
+            std::mem::swap(&mut scratch.rate, &mut scratch.previous_rate);
             (avg, max) = previous;
             break;
         }
@@ -532,6 +565,9 @@ pub fn wcsph_pressure(
 /// compression builds up step after step until the bottom rows burst (docs/deep-columns.md).
 /// A step with a large unseen compression is too long for the linearisation and is redone
 /// with a shorter Δt.
+///
+/// `rates` are the particles' `Dρ_i/Dt/ρ0` at the current velocities ([`density_rates`], or
+/// what the density solve left in [`SolverScratch::density_rates`]).
 pub fn unseen_compression(
     kernel: &CubicSpline,
     volume: f32,
@@ -539,7 +575,13 @@ pub fn unseen_compression(
     fluid: &FluidParticles,
     boundary: &BoundaryParticles,
     nb: &Neighborhood,
+    rates: &[f32],
 ) -> f32 {
+    assert_eq!(
+        rates.len(),
+        fluid.len(),
+        "one density rate per fluid particle"
+    );
     let pos = &fluid.position;
     let vel = &fluid.velocity;
     let density = &fluid.density_ratio;
@@ -548,16 +590,16 @@ pub fn unseen_compression(
     (0..pos.len().div_ceil(LANES))
         .into_par_iter()
         .map(|b| {
-            let rates = block_density_rates(b, volume, vel, nb);
             let fluid_sums = nb
                 .blocks
                 .advected_kernel_sums(b, pos, vel, dt, kernel, volume, self_w);
             let mut worst = 0.0f32;
-            for (l, (rate, mut advected)) in rates.into_iter().zip(fluid_sums).enumerate() {
+            for (l, mut advected) in fluid_sums.into_iter().enumerate() {
                 let i = b * LANES + l;
                 if i >= pos.len() {
                     break;
                 }
+                let rate = rates[i];
                 let xi = pos[i] + dt * vel[i];
                 for &w in nb.boundary.of(i) {
                     let w = w as usize;
@@ -722,9 +764,7 @@ mod tests {
             .collect();
         let mut changed = v.clone();
         apply_pressure(p.volume, &kappa, &mut changed, &nb);
-        let rates: Vec<f32> = (0..p.cache.blocks.blocks())
-            .flat_map(|b| block_density_rates(b, p.volume, v, &nb))
-            .collect();
+        let rates = density_rates(p.volume, v, &nb);
         let h = p.kernel.support();
         let mut wall_pairs = 0;
         for i in 0..p.fluid.len() {
@@ -800,19 +840,23 @@ mod tests {
     fn unseen_compression_is_what_the_linear_prediction_misses() {
         let mut p = patch();
         let nb = Neighborhood::new(&p.fluid_lists, &p.boundary_lists, &p.cache);
+        let check = |p: &Patch, nb: &Neighborhood, dt: f32| {
+            let rates = density_rates(p.volume, &p.fluid.velocity, nb);
+            unseen_compression(&p.kernel, p.volume, dt, &p.fluid, &p.boundary, nb, &rates)
+        };
         // The patch's velocities are random at up to 0.7 m/s against a 2 cm spacing: a step
         // of 10 ms moves neighbours by up to 0.5 d relative to each other, a clearly
         // nonlinear step; 0.1 ms is a linear one.
         for dt in [1.0e-4f32, 1.0e-2] {
-            let got = unseen_compression(&p.kernel, p.volume, dt, &p.fluid, &p.boundary, &nb);
+            let got = check(&p, &nb, dt);
             let want = unseen_compression_directly(&p, dt);
             assert!(
                 (got - want).abs() <= 1.0e-5,
                 "Δt {dt}: {got} from the pass, {want} directly"
             );
         }
-        let long = unseen_compression(&p.kernel, p.volume, 1.0e-2, &p.fluid, &p.boundary, &nb);
-        let short = unseen_compression(&p.kernel, p.volume, 1.0e-4, &p.fluid, &p.boundary, &nb);
+        let long = check(&p, &nb, 1.0e-2);
+        let short = check(&p, &nb, 1.0e-4);
         assert!(long > 0.01, "a long step misses percents: {long}");
         assert!(short < 1.0e-4, "a short step is linear: {short}");
         // A rigid translation of fluid and walls together changes no density.
@@ -831,7 +875,7 @@ mod tests {
             f32::INFINITY,
         );
         let nb = Neighborhood::new(&p.fluid_lists, &p.boundary_lists, &p.cache);
-        let rigid = unseen_compression(&p.kernel, p.volume, 1.0e-2, &p.fluid, &p.boundary, &nb);
+        let rigid = check(&p, &nb, 1.0e-2);
         assert!(rigid < 1.0e-5, "a rigid motion: {rigid}");
     }
 
@@ -906,7 +950,9 @@ mod tests {
                 assert_eq!(sums(&simd_nb), sums(&portable_nb), "block {b}, Δt {dt}");
             }
             let check = |nb: &Neighborhood| {
-                unseen_compression(&p.kernel, p.volume, dt, &p.fluid, &p.boundary, nb).to_bits()
+                let rates = density_rates(p.volume, v, nb);
+                unseen_compression(&p.kernel, p.volume, dt, &p.fluid, &p.boundary, nb, &rates)
+                    .to_bits()
             };
             assert_eq!(check(&simd_nb), check(&portable_nb), "Δt {dt}");
         }
