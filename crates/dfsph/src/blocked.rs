@@ -128,7 +128,8 @@ impl BlockedPairs {
                 for i in w * 32 * LANES..((w + 1) * 32 * LANES).min(lanes) {
                     let r = if i < n { lists.range(i) } else { 0..0 };
                     let mut g = grads[r.clone()].iter();
-                    writer.write_lane(i, &lists.indices[r], |_| *g.next().unwrap());
+                    let list = if i < n { lists.of(i) } else { &[][..] };
+                    writer.write_lane(i, list, |_| *g.next().unwrap());
                 }
             });
     }
@@ -1255,17 +1256,30 @@ mod tests {
 
     /// Lists of random lengths (0 to 20, some empty) with random neighbours and gradients.
     fn random_lists(n: usize) -> (NeighborLists, Vec<Vec2>) {
-        let mut lists = NeighborLists::default();
-        lists.offsets.push(0);
+        random_lists_ending_with(n, None)
+    }
+
+    /// [`random_lists`], with the last pair's neighbour replaced by `last` when given.
+    fn random_lists_ending_with(n: usize, last: Option<u32>) -> (NeighborLists, Vec<Vec2>) {
+        let mut raw: Vec<Vec<u32>> = Vec::new();
         let mut grads = Vec::new();
         for i in 0..n {
             let len = (unit(i as u64) * 21.0) as usize;
+            let mut list = Vec::new();
             for k in 0..len {
                 let key = (i * 31 + k) as u64;
-                lists.indices.push((unit(key) * n as f32) as u32);
+                list.push((unit(key) * n as f32) as u32);
                 grads.push(Vec2::new(unit(key + 7) - 0.5, unit(key + 13) - 0.5));
             }
-            lists.offsets.push(lists.indices.len() as u32);
+            raw.push(list);
+        }
+        if let Some(j) = last {
+            let list = raw.iter_mut().rfind(|l| !l.is_empty()).expect("some pair");
+            *list.last_mut().unwrap() = j;
+        }
+        let mut lists = NeighborLists::default();
+        for list in &raw {
+            lists.push(list);
         }
         (lists, grads)
     }
@@ -1294,7 +1308,7 @@ mod tests {
                         }
                         let r = lists.range(i);
                         let (mut want, mut dot) = (glam::DVec2::ZERO, 0.0f64);
-                        for (&j, g) in lists.indices[r.clone()].iter().zip(&grads[r]) {
+                        for (&j, g) in lists.of(i).iter().zip(&grads[r]) {
                             want += (s[j as usize] * *g).as_dvec2();
                             dot += v[j as usize].dot(*g) as f64;
                         }
@@ -1495,9 +1509,7 @@ mod tests {
     #[should_panic(expected = "neighbour index out of range")]
     fn a_neighbour_index_past_the_particles_is_refused() {
         // The gathers read through these indices unchecked, so they are checked when written.
-        let (mut lists, grads) = random_lists(40);
-        let last = lists.indices.len() - 1;
-        lists.indices[last] = 40;
+        let (lists, grads) = random_lists_ending_with(40, Some(40));
         let mut blocks = BlockedPairs::default();
         blocks.build(&lists, &grads);
     }

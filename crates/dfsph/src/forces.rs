@@ -74,10 +74,7 @@ pub fn non_pressure_accelerations(
         if lap_b > 0.0 {
             let r = nb.boundary.range(i);
             let mut laplace = Vec2::ZERO;
-            for (&b, &g) in nb.boundary.indices[r.clone()]
-                .iter()
-                .zip(&nb.boundary_grad[r])
-            {
+            for (&b, &g) in nb.boundary.of(i).iter().zip(&nb.boundary_grad[r]) {
                 let b = b as usize;
                 let xib = xi - boundary.position[b];
                 let vib = vi - boundary.velocity[b];
