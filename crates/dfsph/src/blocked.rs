@@ -126,9 +126,12 @@ impl BlockedPairs {
             .enumerate()
             .for_each(|(w, mut writer)| {
                 for i in w * 32 * LANES..((w + 1) * 32 * LANES).min(lanes) {
-                    let r = if i < n { lists.range(i) } else { 0..0 };
-                    let mut g = grads[r.clone()].iter();
-                    let list = if i < n { lists.of(i) } else { &[][..] };
+                    let (list, lane_grads) = if i < n {
+                        (lists.of(i), &grads[lists.range(i)])
+                    } else {
+                        (&[][..], &[][..])
+                    };
+                    let mut g = lane_grads.iter();
                     writer.write_lane(i, list, |_| *g.next().unwrap());
                 }
             });

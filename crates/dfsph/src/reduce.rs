@@ -26,22 +26,31 @@ pub fn add_sum_max(a: (f64, f64), b: (f64, f64)) -> (f64, f64) {
     (a.0 + b.0, a.1.max(b.1))
 }
 
+/// The `(sum, max)` of each part, computed in parallel (at most [`MAX_PARTS`] parts, whose
+/// bounds the caller fixed), combined in part order.
+pub fn combine_in_order(parts: impl IndexedParallelIterator<Item = (f64, f64)>) -> (f64, f64) {
+    let used = parts.len();
+    assert!(used <= MAX_PARTS, "{used} parts, at most {MAX_PARTS}");
+    let mut results = [(0.0, 0.0); MAX_PARTS];
+    parts
+        .zip(results.par_iter_mut())
+        .for_each(|(part, slot)| *slot = part);
+    results[..used]
+        .iter()
+        .copied()
+        .fold((0.0, 0.0), add_sum_max)
+}
+
 /// `Σ_i value(x_i)` and `max_i value(x_i)` (0 when empty), the same bits for any thread
 /// count and any work split.
 pub fn sum_and_max<T: Sync>(items: &[T], value: impl Fn(&T) -> f64 + Sync) -> (f64, f64) {
     let per_part = part_units(items.len(), 1024);
-    let mut parts = [(0.0, 0.0); MAX_PARTS];
-    items
-        .par_chunks(per_part)
-        .zip(parts.par_iter_mut())
-        .for_each(|(chunk, part)| {
-            *part = chunk.iter().fold((0.0, 0.0), |acc, x| {
-                let v = value(x);
-                add_sum_max(acc, (v, v))
-            });
-        });
-    let used = items.len().div_ceil(per_part);
-    parts[..used].iter().copied().fold((0.0, 0.0), add_sum_max)
+    combine_in_order(items.par_chunks(per_part).map(|chunk| {
+        chunk.iter().fold((0.0, 0.0), |acc, x| {
+            let v = value(x);
+            add_sum_max(acc, (v, v))
+        })
+    }))
 }
 
 #[cfg(test)]

@@ -343,28 +343,21 @@ fn jacobi_solve(
     let blocks_per_part = reduce::part_units(n.div_ceil(LANES), 16);
     let part = LANES * blocks_per_part;
     let compute_residuals = |vel: &[Vec2], delta: &mut [f32], rate: &mut [f32]| -> (f64, f64) {
-        let mut parts = [(0.0, 0.0); reduce::MAX_PARTS];
-        delta
+        let parts = delta
             .par_chunks_mut(part)
             .zip(rate.par_chunks_mut(part))
-            .zip(parts.par_iter_mut())
             .enumerate()
-            .for_each(|(p, ((d, r), sums))| {
-                *sums = d
-                    .chunks_mut(LANES)
+            .map(|(p, (d, r))| {
+                d.chunks_mut(LANES)
                     .zip(r.chunks_mut(LANES))
                     .enumerate()
                     .map(|(k, (d, r))| {
                         nb.blocks
                             .residual_block(p * blocks_per_part + k, vel, &terms, d, r)
                     })
-                    .fold((0.0, 0.0), reduce::add_sum_max);
+                    .fold((0.0, 0.0), reduce::add_sum_max)
             });
-        let used = n.div_ceil(LANES * blocks_per_part);
-        let (sum, max) = parts[..used]
-            .iter()
-            .copied()
-            .fold((0.0, 0.0), reduce::add_sum_max);
+        let (sum, max) = reduce::combine_in_order(parts);
         (sum / n as f64 * to_pct, max * to_pct)
     };
     scratch.rate.resize(n, 0.0);
