@@ -129,11 +129,16 @@ fn passes(c: &mut Criterion) {
             pairs / n as f64
         );
         eprintln!(
-            "{name}: SIMD blocks hold {} entries for {} fluid pairs ({:.1} % padding); AVX-512 {}",
+            "{name}: SIMD blocks hold {} entries for {} fluid pairs ({:.1} % padding, {} indices); AVX-512 {}",
             s.pair_cache.blocks.entries(),
             s.fluid_lists.pair_count(),
             100.0
                 * (s.pair_cache.blocks.entries() as f64 / s.fluid_lists.pair_count() as f64 - 1.0),
+            if s.pair_cache.blocks.relative_indices() {
+                "16-bit relative"
+            } else {
+                "32-bit"
+            },
             if dfsph::blocked::simd_available() {
                 "on"
             } else {

@@ -9,6 +9,13 @@
 //! values and one multiply-add handles 16 pairs. Shorter lists are padded with the particle's
 //! own index and a zero gradient (9 % padding at 20k and 5 % at 80k on the dam break).
 //!
+//! The indices are stored relative to the block's first particle in 16 bits where every
+//! neighbour lies within ±32k places of it ([`SlotIndex`]): the pressure solver's passes
+//! then stream 10 bytes per entry instead of 12. With lists from a dense grid (sorted by
+//! cell, row by row) a neighbour is at most about one row of cells away, so this holds
+//! while a row of cells holds fewer than about 32,000 particles (840 in the 2 m wide
+//! 100k-particle column); otherwise the indices stay absolute.
+//!
 //! Sums run over a particle's slots in list order in both the SIMD and the scalar path, so the
 //! pair sums are deterministic; the two paths differ only in the rounding of multiply-adds.
 //! The SIMD path is chosen at run time when the CPU has AVX-512F; the release binary stays
@@ -31,8 +38,13 @@ pub struct BlockedPairs {
     /// Block `b` owns slots `slot_start[b]..slot_start[b + 1]`; slot `s` occupies entries
     /// `s·16 .. s·16 + 16` of the arrays below, one per lane.
     slot_start: Vec<u32>,
-    /// Neighbour index per slot and lane (< `n`, so every gather stays in bounds).
+    /// Whether the indices are stored relative, in `relative`, or absolute, in `index`.
+    narrow: bool,
+    /// Neighbour index per slot and lane (< `n`, so every gather stays in bounds); empty
+    /// while `narrow`.
     index: Vec<u32>,
+    /// The same, as offsets from the block's first particle; empty unless `narrow`.
+    relative: Vec<i16>,
     grad_x: Vec<f32>,
     grad_y: Vec<f32>,
     /// Whether the CPU runs the AVX-512 kernels.
@@ -41,6 +53,84 @@ pub struct BlockedPairs {
     gather: Option<Gather>,
     /// Set by [`Self::set_simd`]: stay on the portable path even where AVX-512 exists.
     portable_only: bool,
+    /// Set by [`Self::set_relative_indices`]: store absolute indices even where relative
+    /// ones fit.
+    absolute_only: bool,
+}
+
+/// A block's neighbour indices, as stored.
+#[derive(Clone, Copy)]
+enum Indices<'a> {
+    Absolute(&'a [u32]),
+    Relative(&'a [i16]),
+}
+
+/// A block's neighbour indices, to write.
+enum IndicesMut<'a> {
+    Absolute(&'a mut [u32]),
+    Relative(&'a mut [i16]),
+}
+
+/// Runs `$body` with `$i` bound to the index slice of `$indices`, whichever type it has:
+/// the body is compiled once per [`SlotIndex`] type, so the kernels it calls are too.
+macro_rules! with_indices {
+    ($indices:expr, |$i:ident| $body:expr) => {
+        match $indices {
+            Indices::Absolute($i) => $body,
+            Indices::Relative($i) => $body,
+        }
+    };
+}
+
+/// A stored neighbour index: the particle index itself (`u32`), or its offset from the first
+/// particle of its block (`i16`). The kernels read particle arrays from
+/// `array[origin(first)..]` at [`Self::offset`], so both kinds take the same loads.
+pub(crate) trait SlotIndex: Copy + Send + Sync + 'static {
+    /// Stored as offsets from the block's first particle (16 bits, sign-extended).
+    const RELATIVE: bool;
+    /// Where the offsets count from in a block whose first particle is `first`.
+    fn origin(first: usize) -> usize;
+    /// The offset from [`Self::origin`].
+    fn offset(self) -> isize;
+    /// `j` stored for a block starting at `first`, or `None` where it does not fit.
+    fn encode(j: u32, first: usize) -> Option<Self>;
+    /// The particle index.
+    #[inline]
+    fn absolute(self, first: usize) -> usize {
+        (Self::origin(first) as isize + self.offset()) as usize
+    }
+}
+
+impl SlotIndex for u32 {
+    const RELATIVE: bool = false;
+    #[inline]
+    fn origin(_: usize) -> usize {
+        0
+    }
+    #[inline]
+    fn offset(self) -> isize {
+        self as isize
+    }
+    #[inline]
+    fn encode(j: u32, _: usize) -> Option<Self> {
+        Some(j)
+    }
+}
+
+impl SlotIndex for i16 {
+    const RELATIVE: bool = true;
+    #[inline]
+    fn origin(first: usize) -> usize {
+        first
+    }
+    #[inline]
+    fn offset(self) -> isize {
+        self as isize
+    }
+    #[inline]
+    fn encode(j: u32, first: usize) -> Option<Self> {
+        i16::try_from(j as i64 - first as i64).ok()
+    }
 }
 
 impl BlockedPairs {
@@ -51,7 +141,18 @@ impl BlockedPairs {
 
     /// Slots of all blocks together, times 16: the pair entries including padding.
     pub fn entries(&self) -> usize {
-        self.index.len()
+        self.grad_x.len()
+    }
+
+    /// Whether the indices are stored in 16 bits, relative to each block's first particle.
+    pub fn relative_indices(&self) -> bool {
+        self.narrow
+    }
+
+    /// Store the indices relative where they fit (the default), or always absolute (tests
+    /// and benchmarks compare the two). Takes effect at the next [`Self::prepare`].
+    pub fn set_relative_indices(&mut self, on: bool) {
+        self.absolute_only = !on;
     }
 
     /// Lay the blocks out for `lists` (fluid–fluid, self excluded): each block gets as many
@@ -76,8 +177,28 @@ impl BlockedPairs {
         for b in 0..blocks {
             self.slot_start[b + 1] += self.slot_start[b];
         }
+        // Ascending lists span from their first entry to their last; a lane's padding is
+        // within its block.
+        self.narrow = !self.absolute_only
+            && lists.ascending()
+            && (0..blocks).into_par_iter().all(|b| {
+                (b * LANES..((b + 1) * LANES).min(n)).all(|i| match lists.of(i) {
+                    [] => true,
+                    list => {
+                        let first = b * LANES;
+                        i16::encode(list[0], first).is_some()
+                            && i16::encode(list[list.len() - 1], first).is_some()
+                    }
+                })
+            });
         let entries = self.slot_start[blocks] as usize * LANES;
-        self.index.resize(entries, 0);
+        if self.narrow {
+            self.index.clear();
+            self.relative.resize(entries, 0);
+        } else {
+            self.relative.clear();
+            self.index.resize(entries, 0);
+        }
         self.grad_x.resize(entries, 0.0);
         self.grad_y.resize(entries, 0.0);
     }
@@ -90,18 +211,27 @@ impl BlockedPairs {
         let n = self.n;
         let gather = self.gather();
         let mut out = Vec::with_capacity(blocks.div_ceil(blocks_per_writer));
-        let (mut idx, mut gx, mut gy) = (
+        let (mut abs, mut rel, mut gx, mut gy) = (
             &mut self.index[..],
+            &mut self.relative[..],
             &mut self.grad_x[..],
             &mut self.grad_y[..],
         );
         for first in (0..blocks).step_by(blocks_per_writer) {
             let last = (first + blocks_per_writer).min(blocks);
             let len = (self.slot_start[last] - self.slot_start[first]) as usize * LANES;
-            let (a, rest_i) = std::mem::take(&mut idx).split_at_mut(len);
+            let a = if self.narrow {
+                let (a, rest) = std::mem::take(&mut rel).split_at_mut(len);
+                rel = rest;
+                IndicesMut::Relative(a)
+            } else {
+                let (a, rest) = std::mem::take(&mut abs).split_at_mut(len);
+                abs = rest;
+                IndicesMut::Absolute(a)
+            };
             let (bx, rest_x) = std::mem::take(&mut gx).split_at_mut(len);
             let (by, rest_y) = std::mem::take(&mut gy).split_at_mut(len);
-            (idx, gx, gy) = (rest_i, rest_x, rest_y);
+            (gx, gy) = (rest_x, rest_y);
             out.push(BlockWriter {
                 n,
                 avx512: self.avx512,
@@ -139,13 +269,14 @@ impl BlockedPairs {
 
     /// Block `b`'s indices and gradients, slot by slot.
     #[inline]
-    fn block(&self, b: usize) -> (&[u32], &[f32], &[f32]) {
+    fn block(&self, b: usize) -> (Indices<'_>, &[f32], &[f32]) {
         let e = self.slot_start[b] as usize * LANES..self.slot_start[b + 1] as usize * LANES;
-        (
-            &self.index[e.clone()],
-            &self.grad_x[e.clone()],
-            &self.grad_y[e],
-        )
+        let idx = if self.narrow {
+            Indices::Relative(&self.relative[e.clone()])
+        } else {
+            Indices::Absolute(&self.index[e.clone()])
+        };
+        (idx, &self.grad_x[e.clone()], &self.grad_y[e])
     }
 
     /// `Σ_j s_j ∇W_ij` for the 16 particles of block `b` (x and y components per lane).
@@ -153,13 +284,18 @@ impl BlockedPairs {
     pub fn weighted_gradient_sums(&self, b: usize, s: &[f32]) -> ([f32; LANES], [f32; LANES]) {
         assert!(s.len() >= self.n, "one value per particle");
         let (idx, gx, gy) = self.block(b);
-        #[cfg(target_arch = "x86_64")]
-        if self.avx512 {
-            // SAFETY: the CPU has AVX-512F (checked in `prepare`), and every index is below
-            // `self.n <= s.len()` (checked when written, `BlockWriter::lane_indices`).
-            return unsafe { avx512::weighted_gradient_sums(idx, gx, gy, s, self.gather()) };
-        }
-        scalar_weighted_gradient_sums(idx, gx, gy, s)
+        let first = b * LANES;
+        with_indices!(idx, |idx| {
+            #[cfg(target_arch = "x86_64")]
+            if self.avx512 {
+                // SAFETY: the CPU has AVX-512F (checked in `prepare`), and every index is
+                // below `self.n <= s.len()` (checked when written, `BlockWriter::lane_indices`).
+                return unsafe {
+                    avx512::weighted_gradient_sums(idx, first, gx, gy, s, self.gather())
+                };
+            }
+            scalar_weighted_gradient_sums(idx, first, gx, gy, s)
+        })
     }
 
     /// `Σ_j v_j·∇W_ij` for the 16 particles of block `b`.
@@ -167,13 +303,18 @@ impl BlockedPairs {
     pub fn velocity_gradient_dots(&self, b: usize, v: &[Vec2]) -> [f32; LANES] {
         assert!(v.len() >= self.n, "one velocity per particle");
         let (idx, gx, gy) = self.block(b);
-        #[cfg(target_arch = "x86_64")]
-        if self.avx512 {
-            // SAFETY: as above; `Vec2` is two consecutive f32, so component c of particle j
-            // is element 2j + c of the flat array, below 2·v.len().
-            return unsafe { avx512::velocity_gradient_dots(idx, gx, gy, v, self.gather()) };
-        }
-        scalar_velocity_gradient_dots(idx, gx, gy, v)
+        let first = b * LANES;
+        with_indices!(idx, |idx| {
+            #[cfg(target_arch = "x86_64")]
+            if self.avx512 {
+                // SAFETY: as above; `Vec2` is two consecutive f32, so component c of
+                // particle j is element 2j + c of the flat array, below 2·v.len().
+                return unsafe {
+                    avx512::velocity_gradient_dots(idx, first, gx, gy, v, self.gather())
+                };
+            }
+            scalar_velocity_gradient_dots(idx, first, gx, gy, v)
+        })
     }
 
     /// Particles of block `b`: 16, fewer in the last block.
@@ -199,26 +340,29 @@ impl BlockedPairs {
         assert!(vel.len() >= self.n && terms.holds(self.n));
         assert!(delta.len() == lanes && rate.len() == lanes);
         let (idx, gx, gy) = self.block(b);
-        #[cfg(target_arch = "x86_64")]
-        if self.avx512 {
-            // SAFETY: AVX-512F is present (checked in `prepare`), every index is below
-            // `self.n <= vel.len()` (checked when written), and the per-particle arrays hold
-            // the block's `lanes` particles from `b·16` on (asserted above).
-            return unsafe {
-                avx512::residual_block(
-                    idx,
-                    gx,
-                    gy,
-                    vel,
-                    b * LANES,
-                    terms,
-                    delta,
-                    rate,
-                    self.gather(),
-                )
-            };
-        }
-        let fluid = scalar_velocity_gradient_dots(idx, gx, gy, vel);
+        let first = b * LANES;
+        let fluid = with_indices!(idx, |idx| {
+            #[cfg(target_arch = "x86_64")]
+            if self.avx512 {
+                // SAFETY: AVX-512F is present (checked in `prepare`), every index is below
+                // `self.n <= vel.len()` (checked when written), and the per-particle arrays
+                // hold the block's `lanes` particles from `b·16` on (asserted above).
+                return unsafe {
+                    avx512::residual_block(
+                        idx,
+                        gx,
+                        gy,
+                        vel,
+                        first,
+                        terms,
+                        delta,
+                        rate,
+                        self.gather(),
+                    )
+                };
+            }
+            scalar_velocity_gradient_dots(idx, first, gx, gy, vel)
+        });
         let (mut sum, mut max) = (0.0f64, 0.0f64);
         for (l, (d, r)) in delta.iter_mut().zip(rate.iter_mut()).enumerate() {
             let i = b * LANES + l;
@@ -249,27 +393,30 @@ impl BlockedPairs {
         assert!(kappa.len() >= self.n && grad_sum.len() >= self.n && vel.len() == lanes);
         assert!(total.as_ref().is_none_or(|t| t.len() == lanes));
         let (idx, gx, gy) = self.block(b);
-        #[cfg(target_arch = "x86_64")]
-        if self.avx512 {
-            // SAFETY: AVX-512F is present, every index is below `self.n <= kappa.len()`,
-            // and `kappa`, `grad_sum` hold the block's particles (asserted above).
-            return unsafe {
-                avx512::apply_block(
-                    idx,
-                    gx,
-                    gy,
-                    kappa,
-                    b * LANES,
-                    grad_sum,
-                    volume,
-                    vel,
-                    total,
-                    self.gather(),
-                )
-            };
-        }
-        let (sx, sy) = scalar_weighted_gradient_sums(idx, gx, gy, kappa);
+        let first = b * LANES;
         let mut total = total;
+        let (sx, sy) = with_indices!(idx, |idx| {
+            #[cfg(target_arch = "x86_64")]
+            if self.avx512 {
+                // SAFETY: AVX-512F is present, every index is below `self.n <= kappa.len()`,
+                // and `kappa`, `grad_sum` hold the block's particles (asserted above).
+                return unsafe {
+                    avx512::apply_block(
+                        idx,
+                        gx,
+                        gy,
+                        kappa,
+                        first,
+                        grad_sum,
+                        volume,
+                        vel,
+                        total,
+                        self.gather(),
+                    )
+                };
+            }
+            scalar_weighted_gradient_sums(idx, first, gx, gy, kappa)
+        });
         for (l, v) in vel.iter_mut().enumerate() {
             let i = b * LANES + l;
             *v += -(kappa[i] * grad_sum[i] + volume * Vec2::new(sx[l], sy[l]));
@@ -313,42 +460,46 @@ impl BlockedPairs {
     ) -> [f32; LANES] {
         assert!(pos.len() >= self.n && vel.len() >= self.n);
         let (idx, _, _) = self.block(b);
+        let first = b * LANES;
         let xi = self.per_lane(b, |i| pos[i] + dt * vel[i]);
-        #[cfg(target_arch = "x86_64")]
-        if self.avx512 {
-            // SAFETY: AVX-512F is present (checked in `prepare`), and every index is below
-            // `self.n <= pos.len(), vel.len()` (checked when written).
-            return unsafe {
-                avx512::advected_kernel_sums(
-                    b,
-                    idx,
-                    &xi,
-                    pos,
-                    vel,
-                    dt,
-                    kernel,
-                    volume,
-                    start,
-                    self.gather(),
-                )
-            };
-        }
-        let support2 = kernel.support() * kernel.support();
-        let mut sums = [start; LANES];
-        for slot in idx.chunks_exact(LANES) {
-            for (l, &j) in slot.iter().enumerate() {
-                // Padding repeats the particle itself, which is never its own neighbour.
-                if j as usize == b * LANES + l {
-                    continue;
-                }
-                let xj = pos[j as usize] + dt * vel[j as usize];
-                let r2 = (xi[l] - xj).length_squared();
-                if r2 < support2 {
-                    sums[l] += volume * kernel.w(r2.sqrt());
+        with_indices!(idx, |idx| {
+            #[cfg(target_arch = "x86_64")]
+            if self.avx512 {
+                // SAFETY: AVX-512F is present (checked in `prepare`), and every index is
+                // below `self.n <= pos.len(), vel.len()` (checked when written).
+                return unsafe {
+                    avx512::advected_kernel_sums(
+                        first,
+                        idx,
+                        &xi,
+                        pos,
+                        vel,
+                        dt,
+                        kernel,
+                        volume,
+                        start,
+                        self.gather(),
+                    )
+                };
+            }
+            let support2 = kernel.support() * kernel.support();
+            let mut sums = [start; LANES];
+            for slot in idx.chunks_exact(LANES) {
+                for (l, &j) in slot.iter().enumerate() {
+                    let j = j.absolute(first);
+                    // Padding repeats the particle itself, which is never its own neighbour.
+                    if j == first + l {
+                        continue;
+                    }
+                    let xj = pos[j] + dt * vel[j];
+                    let r2 = (xi[l] - xj).length_squared();
+                    if r2 < support2 {
+                        sums[l] += volume * kernel.w(r2.sqrt());
+                    }
                 }
             }
-        }
-        sums
+            sums
+        })
     }
 
     /// The fluid–fluid viscosity sums of the 16 particles of block `b`, in list order:
@@ -369,45 +520,48 @@ impl BlockedPairs {
     ) -> ([Vec2; LANES], [Vec2; LANES]) {
         assert!(pos.len() >= self.n && vel.len() >= self.n);
         let (idx, gx, gy) = self.block(b);
+        let first = b * LANES;
         let (xi, vi) = (self.per_lane(b, |i| pos[i]), self.per_lane(b, |i| vel[i]));
-        #[cfg(target_arch = "x86_64")]
-        if self.avx512 {
-            // SAFETY: AVX-512F is present (checked in `prepare`), the slices hold whole
-            // slots, and every index is below `self.n <= pos.len(), vel.len()`.
-            return unsafe {
-                avx512::viscosity_sums(
-                    b,
-                    idx,
-                    gx,
-                    gy,
-                    &xi,
-                    &vi,
-                    pos,
-                    vel,
-                    kernel,
-                    eps2,
-                    laplacian,
-                    self.gather(),
-                )
-            };
-        }
-        let mut smooth = [Vec2::ZERO; LANES];
-        let mut laplace = [Vec2::ZERO; LANES];
-        for (k, &j) in idx.iter().enumerate() {
-            let l = k % LANES;
-            // Padding repeats the particle itself, which is never its own neighbour.
-            if j as usize == b * LANES + l {
-                continue;
+        with_indices!(idx, |idx| {
+            #[cfg(target_arch = "x86_64")]
+            if self.avx512 {
+                // SAFETY: AVX-512F is present (checked in `prepare`), the slices hold whole
+                // slots, and every index is below `self.n <= pos.len(), vel.len()`.
+                return unsafe {
+                    avx512::viscosity_sums(
+                        first,
+                        idx,
+                        gx,
+                        gy,
+                        &xi,
+                        &vi,
+                        pos,
+                        vel,
+                        kernel,
+                        eps2,
+                        laplacian,
+                        self.gather(),
+                    )
+                };
             }
-            let xij = xi[l] - pos[j as usize];
-            let vij = vi[l] - vel[j as usize];
-            smooth[l] -= vij * kernel.w(xij.length());
-            if laplacian {
-                let g = Vec2::new(gx[k], gy[k]);
-                laplace[l] += g * (vij.dot(xij) / (xij.length_squared() + eps2));
+            let mut smooth = [Vec2::ZERO; LANES];
+            let mut laplace = [Vec2::ZERO; LANES];
+            for (k, &j) in idx.iter().enumerate() {
+                let (l, j) = (k % LANES, j.absolute(first));
+                // Padding repeats the particle itself, which is never its own neighbour.
+                if j == first + l {
+                    continue;
+                }
+                let xij = xi[l] - pos[j];
+                let vij = vi[l] - vel[j];
+                smooth[l] -= vij * kernel.w(xij.length());
+                if laplacian {
+                    let g = Vec2::new(gx[k], gy[k]);
+                    laplace[l] += g * (vij.dot(xij) / (xij.length_squared() + eps2));
+                }
             }
-        }
-        (smooth, laplace)
+            (smooth, laplace)
+        })
     }
 
     /// Use the SIMD kernels where the CPU has them (the default), or force the portable path
@@ -438,7 +592,7 @@ pub struct BlockWriter<'a> {
     slot_start: &'a [u32],
     /// First slot of the writer's first block.
     base: usize,
-    index: &'a mut [u32],
+    index: IndicesMut<'a>,
     grad_x: &'a mut [f32],
     grad_y: &'a mut [f32],
 }
@@ -452,12 +606,11 @@ impl BlockWriter<'_> {
     }
 
     /// Write particle `i`'s neighbour indices `list` into its lane, padded up to the block's
-    /// width with the particle itself (particle 0 for a lane past the last particle). Every
-    /// index is checked against the particle count here, once, so that the gathers that read
-    /// through these indices stay in bounds.
+    /// width with the particle itself (the block's first particle for a lane past the last
+    /// particle). Every index is checked against the particle count here, once, so that the
+    /// gathers that read through these indices stay in bounds.
     fn lane_indices(&mut self, i: usize, list: &[u32]) {
         let e = self.entries(i / LANES);
-        let lane = i % LANES;
         assert!(
             list.len() * LANES <= e.len(),
             "the blocks were laid out for other lists"
@@ -466,9 +619,9 @@ impl BlockWriter<'_> {
             list.iter().all(|&j| (j as usize) < self.n),
             "neighbour index out of range"
         );
-        let pad = if i < self.n { i as u32 } else { 0 };
-        for (s, slot) in self.index[e].chunks_exact_mut(LANES).enumerate() {
-            slot[lane] = list.get(s).copied().unwrap_or(pad);
+        match &mut self.index {
+            IndicesMut::Absolute(index) => write_lane_indices(&mut index[e], i, self.n, list),
+            IndicesMut::Relative(index) => write_lane_indices(&mut index[e], i, self.n, list),
         }
     }
 
@@ -520,56 +673,94 @@ impl BlockWriter<'_> {
                 (xi[lane], yi[lane]) = (pos[i].x, pos[i].y);
             }
         }
-        let (idx, gx, gy) = (
-            &self.index[e.clone()],
-            &mut self.grad_x[e.clone()],
-            &mut self.grad_y[e],
-        );
-        #[cfg(target_arch = "x86_64")]
-        if self.avx512 {
-            // SAFETY: AVX-512F is present (checked in `prepare`), the slices hold `width`
-            // slots, and every index is below `self.n <= pos.len()` (`lane_indices`).
-            return unsafe {
-                avx512::fluid_sums(
-                    idx,
-                    gx,
-                    gy,
-                    &lens,
-                    &xi,
-                    &yi,
-                    pos,
-                    kernel,
-                    volume,
-                    start,
-                    self.gather,
-                )
-            };
-        }
-        let mut sums = FluidSums {
-            density: [start; LANES],
-            ..Default::default()
+        let (gx, gy) = (&mut self.grad_x[e.clone()], &mut self.grad_y[e.clone()]);
+        let idx = match &self.index {
+            IndicesMut::Absolute(index) => Indices::Absolute(&index[e]),
+            IndicesMut::Relative(index) => Indices::Relative(&index[e]),
         };
-        for s in 0..width {
-            for lane in 0..LANES {
-                let k = s * LANES + lane;
-                let g = if (s as u32) < lens[lane] {
-                    let xj = pos[idx[k] as usize];
-                    let (w, g) = kernel.w_and_grad(Vec2::new(xi[lane], yi[lane]) - xj);
-                    sums.density[lane] += volume * w;
-                    let vg = volume * g;
-                    sums.grad_x[lane] += vg.x;
-                    sums.grad_y[lane] += vg.y;
-                    sums.grad_sq[lane] += vg.length_squared();
-                    g
-                } else {
-                    Vec2::ZERO
+        let first = b * LANES;
+        with_indices!(idx, |idx| {
+            #[cfg(target_arch = "x86_64")]
+            if self.avx512 {
+                // SAFETY: AVX-512F is present (checked in `prepare`), the slices hold `width`
+                // slots, and every index is below `self.n <= pos.len()` (`lane_indices`).
+                return unsafe {
+                    avx512::fluid_sums(
+                        idx,
+                        first,
+                        gx,
+                        gy,
+                        &lens,
+                        &xi,
+                        &yi,
+                        pos,
+                        kernel,
+                        volume,
+                        start,
+                        self.gather,
+                    )
                 };
-                gx[k] = g.x;
-                gy[k] = g.y;
             }
-        }
-        sums
+            scalar_fluid_sums(
+                idx, first, width, gx, gy, &lens, &xi, &yi, pos, kernel, volume, start,
+            )
+        })
     }
+}
+
+/// Write particle `i`'s lane of a block (`index`, whole slots): its neighbours `list`, then
+/// padding with the particle itself, or with the block's first particle for a lane past the
+/// last particle `n - 1`. The indices must be below `n`.
+fn write_lane_indices<I: SlotIndex>(index: &mut [I], i: usize, n: usize, list: &[u32]) {
+    let (first, lane) = (i - i % LANES, i % LANES);
+    let pad = if i < n { i } else { first } as u32;
+    let encode = |j| I::encode(j, first).expect("a neighbour too far for 16-bit indices");
+    let pad = encode(pad);
+    for (s, slot) in index.chunks_exact_mut(LANES).enumerate() {
+        slot[lane] = list.get(s).map_or(pad, |&j| encode(j));
+    }
+}
+
+/// [`BlockWriter::fill_block`]'s pair loop on the portable path.
+#[allow(clippy::too_many_arguments)]
+fn scalar_fluid_sums<I: SlotIndex>(
+    idx: &[I],
+    first: usize,
+    width: usize,
+    gx: &mut [f32],
+    gy: &mut [f32],
+    lens: &[u32; LANES],
+    xi: &[f32; LANES],
+    yi: &[f32; LANES],
+    pos: &[Vec2],
+    kernel: &CubicSpline,
+    volume: f32,
+    start: f32,
+) -> FluidSums {
+    let mut sums = FluidSums {
+        density: [start; LANES],
+        ..Default::default()
+    };
+    for s in 0..width {
+        for lane in 0..LANES {
+            let k = s * LANES + lane;
+            let g = if (s as u32) < lens[lane] {
+                let xj = pos[idx[k].absolute(first)];
+                let (w, g) = kernel.w_and_grad(Vec2::new(xi[lane], yi[lane]) - xj);
+                sums.density[lane] += volume * w;
+                let vg = volume * g;
+                sums.grad_x[lane] += vg.x;
+                sums.grad_y[lane] += vg.y;
+                sums.grad_sq[lane] += vg.length_squared();
+                g
+            } else {
+                Vec2::ZERO
+            };
+            gx[k] = g.x;
+            gy[k] = g.y;
+        }
+    }
+    sums
 }
 
 /// The per-particle terms of a Jacobi iteration's residual pass
@@ -666,37 +857,50 @@ impl Gather {
 /// Calls `pair(lane, j, ∇W)` for every slot of a block, slot by slot: the portable path's
 /// walk, in the same order as the SIMD one.
 #[inline]
-fn for_each_slot(idx: &[u32], gx: &[f32], gy: &[f32], mut pair: impl FnMut(usize, usize, Vec2)) {
+fn for_each_slot<I: SlotIndex>(
+    idx: &[I],
+    first: usize,
+    gx: &[f32],
+    gy: &[f32],
+    mut pair: impl FnMut(usize, usize, Vec2),
+) {
     for ((j, x), y) in idx
         .chunks_exact(LANES)
         .zip(gx.chunks_exact(LANES))
         .zip(gy.chunks_exact(LANES))
     {
         for l in 0..LANES {
-            pair(l, j[l] as usize, Vec2::new(x[l], y[l]));
+            pair(l, j[l].absolute(first), Vec2::new(x[l], y[l]));
         }
     }
 }
 
-fn scalar_weighted_gradient_sums(
-    idx: &[u32],
+fn scalar_weighted_gradient_sums<I: SlotIndex>(
+    idx: &[I],
+    first: usize,
     gx: &[f32],
     gy: &[f32],
     s: &[f32],
 ) -> ([f32; LANES], [f32; LANES]) {
     let mut ax = [0.0f32; LANES];
     let mut ay = [0.0f32; LANES];
-    for_each_slot(idx, gx, gy, |l, j, g| {
+    for_each_slot(idx, first, gx, gy, |l, j, g| {
         ax[l] += s[j] * g.x;
         ay[l] += s[j] * g.y;
     });
     (ax, ay)
 }
 
-fn scalar_velocity_gradient_dots(idx: &[u32], gx: &[f32], gy: &[f32], v: &[Vec2]) -> [f32; LANES] {
+fn scalar_velocity_gradient_dots<I: SlotIndex>(
+    idx: &[I],
+    first: usize,
+    gx: &[f32],
+    gy: &[f32],
+    v: &[Vec2],
+) -> [f32; LANES] {
     let mut ax = [0.0f32; LANES];
     let mut ay = [0.0f32; LANES];
-    for_each_slot(idx, gx, gy, |l, j, g| {
+    for_each_slot(idx, first, gx, gy, |l, j, g| {
         ax[l] += v[j].x * g.x;
         ay[l] += v[j].y * g.y;
     });
@@ -705,7 +909,7 @@ fn scalar_velocity_gradient_dots(idx: &[u32], gx: &[f32], gy: &[f32], v: &[Vec2]
 
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod avx512 {
-    use super::{FluidSums, Gather, LANES};
+    use super::{FluidSums, Gather, SlotIndex, LANES};
     use crate::kernel::CubicSpline;
     use glam::Vec2;
     use std::arch::x86_64::*;
@@ -716,11 +920,12 @@ pub(crate) mod avx512 {
     ///
     /// # Safety
     /// The CPU must have AVX-512F, the three slices the same length (a multiple of 16), and
-    /// every index below `pos.len()`.
+    /// every index (of the block starting at `first`) below `pos.len()`.
     #[allow(clippy::too_many_arguments)]
     #[target_feature(enable = "avx512f")]
-    pub unsafe fn fluid_sums(
-        idx: &[u32],
+    pub unsafe fn fluid_sums<I: SlotIndex>(
+        idx: &[I],
+        first: usize,
         gx: &mut [f32],
         gy: &mut [f32],
         lens: &[u32; LANES],
@@ -733,7 +938,7 @@ pub(crate) mod avx512 {
         gather: Gather,
     ) -> FluidSums {
         let (k, l, inv_h) = kernel.constants();
-        let base = pos.as_ptr() as *const f32;
+        let base = pos.as_ptr().add(I::origin(first)) as *const f32;
         let (xi, yi) = (_mm512_loadu_ps(xi.as_ptr()), _mm512_loadu_ps(yi.as_ptr()));
         let lens = _mm512_loadu_si512(lens.as_ptr() as *const _);
         let c = |v: f32| _mm512_set1_ps(v);
@@ -744,8 +949,8 @@ pub(crate) mod avx512 {
             _mm512_setzero_ps(),
         );
         for (s, kk) in (0..idx.len()).step_by(LANES).enumerate() {
-            let j = _mm512_loadu_si512(idx.as_ptr().add(kk) as *const _);
-            let (xj, yj) = gather_xy(j, idx.as_ptr().add(kk), base, gather);
+            let at = idx.as_ptr().add(kk);
+            let (xj, yj) = gather_xy(load_indices(at), at, base, gather);
             let (rx, ry) = (_mm512_sub_ps(xi, xj), _mm512_sub_ps(yi, yj));
             let rl = _mm512_sqrt_ps(_mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry)));
             let q = _mm512_mul_ps(rl, c(inv_h));
@@ -815,13 +1020,13 @@ pub(crate) mod avx512 {
     /// [`super::BlockedPairs::advected_kernel_sums`], 16 pairs at a time.
     ///
     /// # Safety
-    /// The CPU must have AVX-512F, `idx` must hold whole slots, and every index must be
-    /// below `pos.len()` and `vel.len()`.
+    /// The CPU must have AVX-512F, `idx` must hold whole slots, and every index (of the
+    /// block starting at `first`) must be below `pos.len()` and `vel.len()`.
     #[allow(clippy::too_many_arguments)]
     #[target_feature(enable = "avx512f")]
-    pub unsafe fn advected_kernel_sums(
-        b: usize,
-        idx: &[u32],
+    pub unsafe fn advected_kernel_sums<I: SlotIndex>(
+        first: usize,
+        idx: &[I],
         xi: &[Vec2; LANES],
         pos: &[Vec2],
         vel: &[Vec2],
@@ -834,15 +1039,17 @@ pub(crate) mod avx512 {
         let (k, _, inv_h) = kernel.constants();
         let c = |v: f32| _mm512_set1_ps(v);
         let support2 = c(kernel.support() * kernel.support());
-        let (pbase, vbase) = (pos.as_ptr() as *const f32, vel.as_ptr() as *const f32);
-        let own = indices_from((b * LANES) as u32);
+        let origin = I::origin(first);
+        let pbase = pos.as_ptr().add(origin) as *const f32;
+        let vbase = vel.as_ptr().add(origin) as *const f32;
+        let own = indices_from((first - origin) as u32);
         let (xi_x, xi_y) = split_xy(xi);
         let dtv = c(dt);
         let mut sum = c(start);
         for kk in (0..idx.len()).step_by(LANES) {
-            let j = _mm512_loadu_si512(idx.as_ptr().add(kk) as *const _);
-            // x_j + Δt·v_j, multiply then add, as the scalar `Vec2` expression.
             let at = idx.as_ptr().add(kk);
+            let j = load_indices(at);
+            // x_j + Δt·v_j, multiply then add, as the scalar `Vec2` expression.
             let ((px, py), (vx, vy)) = (
                 gather_xy(j, at, pbase, gather),
                 gather_xy(j, at, vbase, gather),
@@ -862,16 +1069,28 @@ pub(crate) mod avx512 {
         out
     }
 
-    /// The `Vec2` entries `j` (16 indices, also at `at` in memory) of the flat array at
-    /// `base`, as x and y vectors: 16 64-bit `(x, y)` pairs, de-interleaved. With
-    /// [`Gather::Instruction`], two gathers of 8 pairs: a gather costs about one load per
-    /// element, so this reads 16 pairs for the price of 16 elements where separate x and y
-    /// gathers cost 32.
+    /// 16 stored indices from `at`, sign- or zero-extended to 32 bits: offsets from
+    /// [`SlotIndex::origin`].
     #[inline]
     #[target_feature(enable = "avx512f")]
-    unsafe fn gather_xy(
+    unsafe fn load_indices<I: SlotIndex>(at: *const I) -> __m512i {
+        if I::RELATIVE {
+            _mm512_cvtepi16_epi32(_mm256_loadu_si256(at as *const __m256i))
+        } else {
+            _mm512_loadu_si512(at as *const _)
+        }
+    }
+
+    /// The `Vec2` entries `j` (16 offsets, also stored at `at`) of the flat array at `base`
+    /// (its element [`SlotIndex::origin`]), as x and y vectors: 16 64-bit `(x, y)` pairs,
+    /// de-interleaved. With [`Gather::Instruction`], two gathers of 8 pairs: a gather costs
+    /// about one load per element, so this reads 16 pairs for the price of 16 elements where
+    /// separate x and y gathers cost 32.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn gather_xy<I: SlotIndex>(
         j: __m512i,
-        at: *const u32,
+        at: *const I,
         base: *const f32,
         gather: Gather,
     ) -> (__m512, __m512) {
@@ -888,7 +1107,7 @@ pub(crate) mod avx512 {
                 let base = base as *const u64;
                 let mut pairs = [0u64; LANES];
                 for (l, pair) in pairs.iter_mut().enumerate() {
-                    *pair = *base.add(*at.add(l) as usize);
+                    *pair = *base.offset((*at.add(l)).offset());
                 }
                 let flat = pairs.as_ptr() as *const f32;
                 (_mm512_loadu_ps(flat), _mm512_loadu_ps(flat.add(16)))
@@ -897,16 +1116,22 @@ pub(crate) mod avx512 {
         deinterleave(lo, hi)
     }
 
-    /// The f32 entries `j` (16 indices, also at `at` in memory) of the array at `base`.
+    /// The f32 entries `j` (16 offsets, also stored at `at`) of the array at `base` (its
+    /// element [`SlotIndex::origin`]).
     #[inline]
     #[target_feature(enable = "avx512f")]
-    unsafe fn gather_f32(j: __m512i, at: *const u32, base: *const f32, gather: Gather) -> __m512 {
+    unsafe fn gather_f32<I: SlotIndex>(
+        j: __m512i,
+        at: *const I,
+        base: *const f32,
+        gather: Gather,
+    ) -> __m512 {
         match gather {
             Gather::Instruction => _mm512_i32gather_ps::<4>(j, base),
             Gather::Loads => {
                 let mut values = [0.0f32; LANES];
                 for (l, value) in values.iter_mut().enumerate() {
-                    *value = *base.add(*at.add(l) as usize);
+                    *value = *base.offset((*at.add(l)).offset());
                 }
                 _mm512_loadu_ps(values.as_ptr())
             }
@@ -945,12 +1170,12 @@ pub(crate) mod avx512 {
     ///
     /// # Safety
     /// The CPU must have AVX-512F, the three slices must hold whole slots, and every index
-    /// must be below `pos.len()` and `vel.len()`.
+    /// (of the block starting at `first`) must be below `pos.len()` and `vel.len()`.
     #[allow(clippy::too_many_arguments)]
     #[target_feature(enable = "avx512f")]
-    pub unsafe fn viscosity_sums(
-        b: usize,
-        idx: &[u32],
+    pub unsafe fn viscosity_sums<I: SlotIndex>(
+        first: usize,
+        idx: &[I],
         gx: &[f32],
         gy: &[f32],
         xi: &[Vec2; LANES],
@@ -964,16 +1189,18 @@ pub(crate) mod avx512 {
     ) -> ([Vec2; LANES], [Vec2; LANES]) {
         let (k, _, inv_h) = kernel.constants();
         let c = |v: f32| _mm512_set1_ps(v);
-        let (pbase, vbase) = (pos.as_ptr() as *const f32, vel.as_ptr() as *const f32);
-        let own = indices_from((b * LANES) as u32);
+        let origin = I::origin(first);
+        let pbase = pos.as_ptr().add(origin) as *const f32;
+        let vbase = vel.as_ptr().add(origin) as *const f32;
+        let own = indices_from((first - origin) as u32);
         let (xi_x, xi_y) = split_xy(xi);
         let (vi_x, vi_y) = split_xy(vi);
         let (mut sx, mut sy) = (_mm512_setzero_ps(), _mm512_setzero_ps());
         let (mut lx, mut ly) = (_mm512_setzero_ps(), _mm512_setzero_ps());
         for kk in (0..idx.len()).step_by(LANES) {
-            let j = _mm512_loadu_si512(idx.as_ptr().add(kk) as *const _);
-            let pair = _mm512_cmpneq_epi32_mask(j, own);
             let at = idx.as_ptr().add(kk);
+            let j = load_indices(at);
+            let pair = _mm512_cmpneq_epi32_mask(j, own);
             let ((xj, yj), (vxj, vyj)) = (
                 gather_xy(j, at, pbase, gather),
                 gather_xy(j, at, vbase, gather),
@@ -1066,8 +1293,8 @@ pub(crate) mod avx512 {
     /// `delta.len()` (≤ 16) particles from `first` on, and `rate` as many entries as `delta`.
     #[allow(clippy::too_many_arguments)]
     #[target_feature(enable = "avx512f")]
-    pub unsafe fn residual_block(
-        idx: &[u32],
+    pub unsafe fn residual_block<I: SlotIndex>(
+        idx: &[I],
         gx: &[f32],
         gy: &[f32],
         vel: &[Vec2],
@@ -1078,7 +1305,7 @@ pub(crate) mod avx512 {
         gather: Gather,
     ) -> (f64, f64) {
         let lanes = delta.len();
-        let fluid = velocity_gradient_dot_lanes(idx, gx, gy, vel, gather);
+        let fluid = velocity_gradient_dot_lanes(idx, first, gx, gy, vel, gather);
         let m = lane_mask(lanes);
         let c = |v: f32| _mm512_set1_ps(v);
         let load = |a: &[f32]| _mm512_maskz_loadu_ps(m, a.as_ptr().add(first));
@@ -1121,8 +1348,8 @@ pub(crate) mod avx512 {
     /// (≤ 16) particles from `first` on, and `total`, when given, as many entries as `vel`.
     #[allow(clippy::too_many_arguments)]
     #[target_feature(enable = "avx512f")]
-    pub unsafe fn apply_block(
-        idx: &[u32],
+    pub unsafe fn apply_block<I: SlotIndex>(
+        idx: &[I],
         gx: &[f32],
         gy: &[f32],
         kappa: &[f32],
@@ -1134,7 +1361,7 @@ pub(crate) mod avx512 {
         gather: Gather,
     ) {
         let lanes = vel.len();
-        let (sx, sy) = weighted_gradient_sum_lanes(idx, gx, gy, kappa, gather);
+        let (sx, sy) = weighted_gradient_sum_lanes(idx, first, gx, gy, kappa, gather);
         let m = lane_mask(lanes);
         let ki = _mm512_maskz_loadu_ps(m, kappa.as_ptr().add(first));
         let (gsx, gsy) = load_pairs(grad_sum.as_ptr().add(first), lanes);
@@ -1165,21 +1392,23 @@ pub(crate) mod avx512 {
     ///
     /// # Safety
     /// The CPU must have AVX-512F, the three slices the same length (a multiple of 16), and
-    /// every index below `s.len()`.
+    /// every index (of the block starting at `first`) below `s.len()`.
     #[inline]
     #[target_feature(enable = "avx512f")]
-    unsafe fn weighted_gradient_sum_lanes(
-        idx: &[u32],
+    unsafe fn weighted_gradient_sum_lanes<I: SlotIndex>(
+        idx: &[I],
+        first: usize,
         gx: &[f32],
         gy: &[f32],
         s: &[f32],
         gather: Gather,
     ) -> (__m512, __m512) {
+        let base = s.as_ptr().add(I::origin(first));
         let mut ax = _mm512_setzero_ps();
         let mut ay = _mm512_setzero_ps();
         for k in (0..idx.len()).step_by(LANES) {
-            let j = _mm512_loadu_si512(idx.as_ptr().add(k) as *const _);
-            let sj = gather_f32(j, idx.as_ptr().add(k), s.as_ptr(), gather);
+            let at = idx.as_ptr().add(k);
+            let sj = gather_f32(load_indices(at), at, base, gather);
             ax = _mm512_fmadd_ps(sj, _mm512_loadu_ps(gx.as_ptr().add(k)), ax);
             ay = _mm512_fmadd_ps(sj, _mm512_loadu_ps(gy.as_ptr().add(k)), ay);
         }
@@ -1189,14 +1418,15 @@ pub(crate) mod avx512 {
     /// # Safety
     /// As [`weighted_gradient_sum_lanes`].
     #[target_feature(enable = "avx512f")]
-    pub unsafe fn weighted_gradient_sums(
-        idx: &[u32],
+    pub unsafe fn weighted_gradient_sums<I: SlotIndex>(
+        idx: &[I],
+        first: usize,
         gx: &[f32],
         gy: &[f32],
         s: &[f32],
         gather: Gather,
     ) -> ([f32; LANES], [f32; LANES]) {
-        let (ax, ay) = weighted_gradient_sum_lanes(idx, gx, gy, s, gather);
+        let (ax, ay) = weighted_gradient_sum_lanes(idx, first, gx, gy, s, gather);
         let mut out = ([0.0f32; LANES], [0.0f32; LANES]);
         _mm512_storeu_ps(out.0.as_mut_ptr(), ax);
         _mm512_storeu_ps(out.1.as_mut_ptr(), ay);
@@ -1209,21 +1439,22 @@ pub(crate) mod avx512 {
     /// As [`weighted_gradient_sum_lanes`], with every index below `v.len()`.
     #[inline]
     #[target_feature(enable = "avx512f")]
-    unsafe fn velocity_gradient_dot_lanes(
-        idx: &[u32],
+    unsafe fn velocity_gradient_dot_lanes<I: SlotIndex>(
+        idx: &[I],
+        first: usize,
         gx: &[f32],
         gy: &[f32],
         v: &[Vec2],
         gather: Gather,
     ) -> __m512 {
-        let base = v.as_ptr() as *const f32;
+        let base = v.as_ptr().add(I::origin(first)) as *const f32;
         // Two accumulators, so that consecutive multiply-adds do not wait for each other.
         let mut ax = _mm512_setzero_ps();
         let mut ay = _mm512_setzero_ps();
         for k in (0..idx.len()).step_by(LANES) {
-            let j = _mm512_loadu_si512(idx.as_ptr().add(k) as *const _);
+            let at = idx.as_ptr().add(k);
             // Pair j of the flat array is v_j; the gather's scale of 8 bytes steps by Vec2.
-            let (vx, vy) = gather_xy(j, idx.as_ptr().add(k), base, gather);
+            let (vx, vy) = gather_xy(load_indices(at), at, base, gather);
             ax = _mm512_fmadd_ps(vx, _mm512_loadu_ps(gx.as_ptr().add(k)), ax);
             ay = _mm512_fmadd_ps(vy, _mm512_loadu_ps(gy.as_ptr().add(k)), ay);
         }
@@ -1233,15 +1464,16 @@ pub(crate) mod avx512 {
     /// # Safety
     /// As [`velocity_gradient_dot_lanes`].
     #[target_feature(enable = "avx512f")]
-    pub unsafe fn velocity_gradient_dots(
-        idx: &[u32],
+    pub unsafe fn velocity_gradient_dots<I: SlotIndex>(
+        idx: &[I],
+        first: usize,
         gx: &[f32],
         gy: &[f32],
         v: &[Vec2],
         gather: Gather,
     ) -> [f32; LANES] {
         let mut out = [0.0f32; LANES];
-        let dots = velocity_gradient_dot_lanes(idx, gx, gy, v, gather);
+        let dots = velocity_gradient_dot_lanes(idx, first, gx, gy, v, gather);
         _mm512_storeu_ps(out.as_mut_ptr(), dots);
         out
     }
@@ -1430,12 +1662,34 @@ mod tests {
         }
     }
 
-    /// Gather instructions and plain loads read the same values, so every SIMD kernel must
-    /// give the same bits either way. (Without AVX-512 both runs take the portable path.)
-    #[test]
-    fn gathers_and_loads_give_identical_bits() {
-        let n = 333;
-        let (lists, grads) = random_lists(n);
+    /// [`random_lists`] with every list (and its gradients) sorted by neighbour index, as a
+    /// dense grid's are.
+    fn sorted_random_lists(n: usize) -> (NeighborLists, Vec<Vec2>) {
+        let (raw, raw_grads) = random_lists(n);
+        let (mut lists, mut grads) = (NeighborLists::default(), Vec::new());
+        for i in 0..n {
+            let mut pairs: Vec<(u32, Vec2)> = raw
+                .of(i)
+                .iter()
+                .copied()
+                .zip(raw_grads[raw.range(i)].iter().copied())
+                .collect();
+            pairs.sort_by_key(|p| p.0);
+            lists.push(&pairs.iter().map(|p| p.0).collect::<Vec<_>>());
+            grads.extend(pairs.iter().map(|p| p.1));
+        }
+        assert!(lists.ascending());
+        (lists, grads)
+    }
+
+    /// The bits of every kernel's results over all blocks, and of the blocks `fill_block`
+    /// writes, for blocks set up by `setup` before they are built.
+    fn all_kernel_bits(
+        lists: &NeighborLists,
+        grads: &[Vec2],
+        setup: impl Fn(&mut BlockedPairs),
+    ) -> Vec<u32> {
+        let n = lists.len();
         let val = |k: usize, salt: u64| unit(k as u64 * 5 + salt) - 0.4;
         let s: Vec<f32> = (0..n).map(|k| val(k, 1)).collect();
         let pos: Vec<Vec2> = (0..n)
@@ -1443,52 +1697,152 @@ mod tests {
             .collect();
         let vel: Vec<Vec2> = (0..n).map(|k| Vec2::new(val(k, 4), val(k, 5))).collect();
         let kernel = CubicSpline::new(0.04);
-        let run = |gather: Gather| {
-            let mut blocks = BlockedPairs::default();
-            blocks.set_gather(gather);
-            blocks.build(&lists, &grads);
-            let mut bits = Vec::new();
-            let mut push = |v: &[f32]| bits.extend(v.iter().map(|x| x.to_bits()));
-            for b in 0..blocks.blocks() {
-                let (sx, sy) = blocks.weighted_gradient_sums(b, &s);
-                push(&sx);
-                push(&sy);
-                push(&blocks.velocity_gradient_dots(b, &vel));
-                push(&blocks.advected_kernel_sums(b, &pos, &vel, 1e-3, &kernel, 0.5, 0.1));
-                let (smooth, laplace) = blocks.viscosity_sums(b, &pos, &vel, &kernel, 1e-6, true);
-                for v in smooth.iter().chain(&laplace) {
-                    push(&[v.x, v.y]);
-                }
+        let mut blocks = BlockedPairs::default();
+        setup(&mut blocks);
+        blocks.build(lists, grads);
+        let mut bits = Vec::new();
+        let mut push = |v: &[f32]| bits.extend(v.iter().map(|x| x.to_bits()));
+        for b in 0..blocks.blocks() {
+            let (sx, sy) = blocks.weighted_gradient_sums(b, &s);
+            push(&sx);
+            push(&sy);
+            push(&blocks.velocity_gradient_dots(b, &vel));
+            push(&blocks.advected_kernel_sums(b, &pos, &vel, 1e-3, &kernel, 0.5, 0.1));
+            let (smooth, laplace) = blocks.viscosity_sums(b, &pos, &vel, &kernel, 1e-6, true);
+            for v in smooth.iter().chain(&laplace) {
+                push(&[v.x, v.y]);
             }
-            let mut writer_sums = Vec::new();
-            let mut filled = BlockedPairs::default();
-            filled.set_gather(gather);
-            filled.prepare(&lists);
-            for (b, mut w) in filled.writers(1).into_iter().enumerate() {
-                let sums = w.fill_block(b, &lists, &pos, &kernel, 0.5, 0.1);
-                writer_sums.extend(
-                    sums.density
-                        .iter()
-                        .chain(&sums.grad_sq)
-                        .map(|x| x.to_bits()),
-                );
-            }
-            bits.extend(writer_sums);
-            bits.extend(
-                filled
-                    .grad_x
+        }
+        let mut writer_sums = Vec::new();
+        let mut filled = BlockedPairs::default();
+        setup(&mut filled);
+        filled.prepare(lists);
+        for (b, mut w) in filled.writers(1).into_iter().enumerate() {
+            let sums = w.fill_block(b, lists, &pos, &kernel, 0.5, 0.1);
+            writer_sums.extend(
+                sums.density
                     .iter()
-                    .chain(&filled.grad_y)
+                    .chain(&sums.grad_sq)
                     .map(|x| x.to_bits()),
             );
-            bits
-        };
-        let (instruction, loads) = (run(Gather::Instruction), run(Gather::Loads));
-        assert_eq!(instruction.len(), loads.len());
-        assert!(
-            instruction == loads,
-            "the two ways of reading neighbours differ"
+        }
+        bits.extend(writer_sums);
+        bits.extend(
+            filled
+                .grad_x
+                .iter()
+                .chain(&filled.grad_y)
+                .map(|x| x.to_bits()),
         );
+        bits
+    }
+
+    /// Gather instructions and plain loads read the same values, so every SIMD kernel must
+    /// give the same bits either way, with either kind of index. (Without AVX-512 both runs
+    /// take the portable path.)
+    #[test]
+    fn gathers_and_loads_give_identical_bits() {
+        for (lists, grads) in [random_lists(333), sorted_random_lists(333)] {
+            let run = |gather: Gather| {
+                all_kernel_bits(&lists, &grads, |blocks| blocks.set_gather(gather))
+            };
+            let (instruction, loads) = (run(Gather::Instruction), run(Gather::Loads));
+            assert_eq!(instruction.len(), loads.len());
+            assert!(
+                instruction == loads,
+                "the two ways of reading neighbours differ"
+            );
+        }
+    }
+
+    /// The same lists stored with relative and with absolute indices give the same bits in
+    /// every kernel, on both paths (a kernel that read an offset as an index, or missed the
+    /// own-particle test, would differ).
+    #[test]
+    fn relative_and_absolute_indices_give_identical_bits() {
+        for n in [1000, 37, 16] {
+            let (lists, grads) = sorted_random_lists(n);
+            for simd in [true, false] {
+                let run = |relative: bool| {
+                    all_kernel_bits(&lists, &grads, |blocks| {
+                        blocks.set_simd(simd);
+                        blocks.set_relative_indices(relative);
+                    })
+                };
+                assert!(run(true) == run(false), "n {n}, simd {simd}");
+            }
+            let mut blocks = BlockedPairs::default();
+            blocks.build(&lists, &grads);
+            assert!(
+                blocks.relative_indices(),
+                "n {n}: sorted lists near their blocks"
+            );
+            assert!(blocks.index.is_empty() && blocks.relative.len() == blocks.entries());
+            blocks.set_relative_indices(false);
+            blocks.build(&lists, &grads);
+            assert!(!blocks.relative_indices());
+            assert!(blocks.relative.is_empty() && blocks.index.len() == blocks.entries());
+        }
+        // Unordered lists: their span is unknown without reading them all.
+        let (lists, grads) = random_lists(100);
+        let mut blocks = BlockedPairs::default();
+        blocks.build(&lists, &grads);
+        assert!(!blocks.relative_indices());
+    }
+
+    /// A neighbour 32,767 places after its block's first particle or 32,768 before still
+    /// fits in 16 bits; one place further does not, and then every block stores absolute
+    /// indices, with the same sums.
+    #[test]
+    fn neighbours_beyond_16_bits_keep_absolute_indices() {
+        let n = 40_000;
+        // Particle 3 (block 0) and particle 32_790 (block 2,049, first particle 32,784).
+        let cases = [
+            (3, 32_767, true),
+            (3, 32_768, false),
+            (32_790, 16, true),
+            (32_790, 15, false),
+        ];
+        for (i, j, fits) in cases {
+            let mut lists = NeighborLists::default();
+            let mut grads = Vec::new();
+            for k in 0..n {
+                let list: Vec<u32> = if k == i {
+                    vec![j]
+                } else if k % 500 == 7 {
+                    vec![k as u32 - 1, k as u32 + 1]
+                } else {
+                    vec![]
+                };
+                grads.extend(list.iter().map(|&j| Vec2::new(1.0, j as f32 * 1e-4)));
+                lists.push(&list);
+            }
+            let mut blocks = BlockedPairs::default();
+            blocks.build(&lists, &grads);
+            assert_eq!(
+                blocks.relative_indices(),
+                fits,
+                "particle {i}, neighbour {j}"
+            );
+            let s: Vec<f32> = (0..n).map(|k| 1.0 + k as f32).collect();
+            for k in [i, 7, 39_507] {
+                let (sx, sy) = blocks.weighted_gradient_sums(k / LANES, &s);
+                let (mut wx, mut wy) = (0.0f32, 0.0f32);
+                for (&j, g) in lists.of(k).iter().zip(&grads[lists.range(k)]) {
+                    wx += s[j as usize] * g.x;
+                    wy += s[j as usize] * g.y;
+                }
+                let l = k % LANES;
+                assert!(
+                    (sx[l] - wx).abs() <= 1e-3 * wx.abs(),
+                    "{i}, {j}, particle {k}"
+                );
+                assert!(
+                    (sy[l] - wy).abs() <= 1e-3 * wy.abs().max(1.0),
+                    "{i}, {j}, {k}"
+                );
+            }
+        }
     }
 
     #[test]

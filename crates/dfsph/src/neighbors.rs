@@ -31,6 +31,8 @@ pub struct NeighborLists {
     /// One buffer per chunk of points (those past the last chunk in use are left over from
     /// larger builds).
     chunks: Vec<Vec<u32>>,
+    /// Every list is in increasing order (see [`Self::ascending`]).
+    ascending: bool,
 }
 
 impl NeighborLists {
@@ -49,7 +51,9 @@ impl NeighborLists {
     pub fn push(&mut self, list: &[u32]) {
         if self.offsets.is_empty() {
             self.offsets.push(0);
+            self.ascending = true;
         }
+        self.ascending &= list.is_sorted();
         let i = self.len();
         let chunk = i / CHUNK;
         if i.is_multiple_of(CHUNK) {
@@ -81,6 +85,13 @@ impl NeighborLists {
     /// Total number of (ordered) pairs.
     pub fn pair_count(&self) -> usize {
         self.offsets.last().copied().unwrap_or(0) as usize
+    }
+
+    /// Whether every list is in increasing order, so that its first and last entries are its
+    /// smallest and largest. A dense grid's lists are: it visits the rows of cells in key
+    /// order, each as one range of sorted points. A hashed grid's need not be.
+    pub fn ascending(&self) -> bool {
+        self.ascending
     }
 }
 
@@ -335,6 +346,7 @@ impl Grid {
             out.chunks.resize_with(chunks, Vec::new);
         }
         out.offsets[0] = 0;
+        out.ascending = !self.hashed;
         let avx512 = !self.portable_only && crate::blocked::simd_available();
         // Pass 1 (parallel over chunks): each chunk lists its points' neighbours into its own
         // buffer and writes its points' counts.
@@ -560,7 +572,11 @@ mod tests {
         grid.neighbor_lists(&sorted, true, &mut lists);
         assert_eq!(lists.len(), points.len());
         assert_same_on_both_paths(&mut grid, &sorted, true, &lists);
+        // A dense grid's lists are in increasing order (the blocks' 16-bit indices rely on
+        // it); a hashed grid's are not claimed to be.
+        assert_eq!(lists.ascending(), !grid.hashed);
         for i in 0..sorted.len() {
+            assert!(grid.hashed || lists.of(i).is_sorted(), "point {i}");
             let mut got = lists.of(i).to_vec();
             got.sort_unstable();
             assert_eq!(
@@ -621,6 +637,19 @@ mod tests {
             }
         }
         check(pts, r);
+    }
+
+    #[test]
+    fn hand_made_lists_are_ascending_until_one_is_not() {
+        let mut lists = NeighborLists::default();
+        lists.push(&[1, 5, 9]);
+        lists.push(&[]);
+        lists.push(&[0, 2]);
+        assert!(lists.ascending());
+        lists.push(&[4, 3]);
+        assert!(!lists.ascending());
+        lists.push(&[7]);
+        assert!(!lists.ascending(), "one unordered list is enough");
     }
 
     #[test]
