@@ -149,6 +149,21 @@ impl BlockedPairs {
         self.narrow
     }
 
+    /// Every entry's particle index, slot by slot, however stored.
+    #[cfg(test)]
+    fn absolute_indices(&self) -> Vec<u32> {
+        (0..self.blocks())
+            .flat_map(|b| {
+                let (idx, _, _) = self.block(b);
+                let first = b * LANES;
+                with_indices!(idx, |idx| idx
+                    .iter()
+                    .map(|j| j.absolute(first) as u32)
+                    .collect::<Vec<_>>())
+            })
+            .collect()
+    }
+
     /// Store the indices relative where they fit (the default), or always absolute (tests
     /// and benchmarks compare the two). Takes effect at the next [`Self::prepare`].
     pub fn set_relative_indices(&mut self, on: bool) {
@@ -661,36 +676,36 @@ impl BlockWriter<'_> {
         assert!(pos.len() >= self.n && lists.len() == self.n);
         let e = self.entries(b);
         let width = e.len() / LANES;
-        let mut lens = [0u32; LANES];
+        let first = b * LANES;
+        let mut lane_lists = [&[][..]; LANES];
         let mut xi = [0.0f32; LANES];
         let mut yi = [0.0f32; LANES];
-        for lane in 0..LANES {
-            let i = b * LANES + lane;
-            let list = if i < self.n { lists.of(i) } else { &[][..] };
-            self.lane_indices(i, list);
-            lens[lane] = list.len() as u32;
+        for (lane, list) in lane_lists.iter_mut().enumerate() {
+            let i = first + lane;
             if i < self.n {
+                *list = lists.of(i);
                 (xi[lane], yi[lane]) = (pos[i].x, pos[i].y);
             }
         }
-        let (gx, gy) = (&mut self.grad_x[e.clone()], &mut self.grad_y[e.clone()]);
-        let idx = match &self.index {
-            IndicesMut::Absolute(index) => Indices::Absolute(&index[e]),
-            IndicesMut::Relative(index) => Indices::Relative(&index[e]),
-        };
-        let first = b * LANES;
-        with_indices!(idx, |idx| {
-            #[cfg(target_arch = "x86_64")]
-            if self.avx512 {
-                // SAFETY: AVX-512F is present (checked in `prepare`), the slices hold `width`
-                // slots, and every index is below `self.n <= pos.len()` (`lane_indices`).
-                return unsafe {
-                    avx512::fluid_sums(
-                        idx,
-                        first,
+        let lens: [u32; LANES] = std::array::from_fn(|l| lane_lists[l].len() as u32);
+        #[cfg(target_arch = "x86_64")]
+        if self.avx512 {
+            assert!(
+                lens.iter().all(|&len| len as usize <= width),
+                "the blocks were laid out for other lists"
+            );
+            let (gx, gy) = (&mut self.grad_x[e.clone()], &mut self.grad_y[e.clone()]);
+            let lists = avx512::LaneLists::new(&lane_lists, first, self.n);
+            // SAFETY: AVX-512F is present (checked in `prepare`), the slices hold `width`
+            // slots, no list is longer than that (asserted above), and `pos` holds the `n`
+            // particles the kernel checks every index against.
+            return unsafe {
+                match &mut self.index {
+                    IndicesMut::Absolute(index) => avx512::fill_fluid_block(
+                        &lists,
+                        &mut index[e],
                         gx,
                         gy,
-                        &lens,
                         &xi,
                         &yi,
                         pos,
@@ -698,13 +713,34 @@ impl BlockWriter<'_> {
                         volume,
                         start,
                         self.gather,
-                    )
-                };
-            }
-            scalar_fluid_sums(
-                idx, first, width, gx, gy, &lens, &xi, &yi, pos, kernel, volume, start,
-            )
-        })
+                    ),
+                    IndicesMut::Relative(index) => avx512::fill_fluid_block(
+                        &lists,
+                        &mut index[e],
+                        gx,
+                        gy,
+                        &xi,
+                        &yi,
+                        pos,
+                        kernel,
+                        volume,
+                        start,
+                        self.gather,
+                    ),
+                }
+            };
+        }
+        for (lane, list) in lane_lists.iter().enumerate() {
+            self.lane_indices(first + lane, list);
+        }
+        let (gx, gy) = (&mut self.grad_x[e.clone()], &mut self.grad_y[e.clone()]);
+        let idx = match &self.index {
+            IndicesMut::Absolute(index) => Indices::Absolute(&index[e]),
+            IndicesMut::Relative(index) => Indices::Relative(&index[e]),
+        };
+        with_indices!(idx, |idx| scalar_fluid_sums(
+            idx, first, width, gx, gy, &lens, &xi, &yi, pos, kernel, volume, start,
+        ))
     }
 }
 
@@ -914,21 +950,71 @@ pub(crate) mod avx512 {
     use glam::Vec2;
     use std::arch::x86_64::*;
 
-    /// [`super::BlockWriter::fill_block`]'s pair loop, 16 lanes at a time. Multiplies and adds
-    /// are separate (no fused multiply-add) and in the scalar code's order, so every result
-    /// rounds exactly as [`CubicSpline::w_and_grad`] and the scalar sums do.
+    /// The 16 lanes' neighbour lists of a block being filled, read slot by slot.
+    pub struct LaneLists<'a> {
+        /// Each lane's list; an empty list is replaced by one placeholder entry, so that
+        /// every lane has an entry to load.
+        lists: [&'a [u32]; LANES],
+        lens: [u32; LANES],
+        /// What a lane holds past the end of its list: the particle itself, or the block's
+        /// first particle for a lane past the last particle.
+        pad: [u32; LANES],
+        first: usize,
+        /// Particles: every index must be below this.
+        n: usize,
+    }
+
+    impl<'a> LaneLists<'a> {
+        /// The lists of the block whose first particle is `first`, of `n` particles.
+        pub fn new(lists: &[&'a [u32]; LANES], first: usize, n: usize) -> Self {
+            const PLACEHOLDER: &[u32] = &[0];
+            LaneLists {
+                lists: std::array::from_fn(|l| match lists[l] {
+                    [] => PLACEHOLDER,
+                    list => list,
+                }),
+                lens: std::array::from_fn(|l| lists[l].len() as u32),
+                pad: std::array::from_fn(|l| {
+                    if first + l < n {
+                        first + l
+                    } else {
+                        first
+                    }
+                } as u32),
+                first,
+                n,
+            }
+        }
+
+        /// Each lane's `s`-th neighbour, or its last one where the list is shorter (the
+        /// placeholder for an empty list): always an entry of the list, so the load needs no
+        /// branch.
+        #[inline(always)]
+        fn clamped_slot(&self, s: usize, out: &mut [u32; LANES]) {
+            for (o, list) in out.iter_mut().zip(&self.lists) {
+                // SAFETY: `list` is not empty, so `len - 1` is in bounds.
+                *o = unsafe { *list.get_unchecked(s.min(list.len() - 1)) };
+            }
+        }
+    }
+
+    /// [`super::BlockWriter::fill_block`] 16 lanes at a time. Slot by slot, the lanes'
+    /// neighbours are read from their lists (padded where a list is shorter), checked
+    /// against the particle count, stored in `idx` and used to read the neighbours'
+    /// positions; then `∇W` and the density sums. Multiplies and adds are separate (no
+    /// fused multiply-add) and in the scalar code's order, so every result rounds exactly
+    /// as [`CubicSpline::w_and_grad`] and the scalar sums do.
     ///
     /// # Safety
-    /// The CPU must have AVX-512F, the three slices the same length (a multiple of 16), and
-    /// every index (of the block starting at `first`) below `pos.len()`.
+    /// The CPU must have AVX-512F, and the three slices the same length (a multiple of 16,
+    /// at least 16 times the longest list).
     #[allow(clippy::too_many_arguments)]
     #[target_feature(enable = "avx512f")]
-    pub unsafe fn fluid_sums<I: SlotIndex>(
-        idx: &[I],
-        first: usize,
+    pub unsafe fn fill_fluid_block<I: SlotIndex>(
+        lists: &LaneLists,
+        idx: &mut [I],
         gx: &mut [f32],
         gy: &mut [f32],
-        lens: &[u32; LANES],
         xi: &[f32; LANES],
         yi: &[f32; LANES],
         pos: &[Vec2],
@@ -937,10 +1023,14 @@ pub(crate) mod avx512 {
         start: f32,
         gather: Gather,
     ) -> FluidSums {
+        assert!(pos.len() >= lists.n);
+        let (count, first) = (_mm512_set1_epi32(lists.n as i32), lists.first as i32);
         let (k, l, inv_h) = kernel.constants();
-        let base = pos.as_ptr().add(I::origin(first)) as *const f32;
+        let base = pos.as_ptr() as *const f32;
         let (xi, yi) = (_mm512_loadu_ps(xi.as_ptr()), _mm512_loadu_ps(yi.as_ptr()));
-        let lens = _mm512_loadu_si512(lens.as_ptr() as *const _);
+        let lens = _mm512_loadu_si512(lists.lens.as_ptr() as *const _);
+        let pad = _mm512_loadu_si512(lists.pad.as_ptr() as *const _);
+        let mut slot = [0u32; LANES];
         let c = |v: f32| _mm512_set1_ps(v);
         let (mut dens, mut sx, mut sy, mut sq) = (
             c(start),
@@ -949,12 +1039,33 @@ pub(crate) mod avx512 {
             _mm512_setzero_ps(),
         );
         for (s, kk) in (0..idx.len()).step_by(LANES).enumerate() {
-            let at = idx.as_ptr().add(kk);
-            let (xj, yj) = gather_xy(load_indices(at), at, base, gather);
+            lists.clamped_slot(s, &mut slot);
+            let clamped = _mm512_loadu_si512(slot.as_ptr() as *const _);
+            // Every index is checked before it is used to read (unsigned: j < n).
+            assert!(
+                _mm512_cmpge_epu32_mask(clamped, count) == 0,
+                "neighbour index out of range"
+            );
+            let pair = _mm512_cmplt_epu32_mask(_mm512_set1_epi32(s as i32), lens);
+            let j = _mm512_mask_blend_epi32(pair, pad, clamped);
+            let out = idx.as_mut_ptr().add(kk);
+            if I::RELATIVE {
+                // j − first must lie in [−32768, 32767]: j − first + 32768 in [0, 65535].
+                let shifted = _mm512_sub_epi32(j, _mm512_set1_epi32(first - 32_768));
+                assert!(
+                    _mm512_cmpgt_epu32_mask(shifted, _mm512_set1_epi32(65_535)) == 0,
+                    "a neighbour too far for 16-bit indices"
+                );
+                let relative = _mm512_sub_epi32(j, _mm512_set1_epi32(first));
+                _mm256_storeu_si256(out as *mut __m256i, _mm512_cvtepi32_epi16(relative));
+            } else {
+                _mm512_storeu_si512(out as *mut _, j);
+            }
+            // The padding lanes read a real neighbour's position; their results are masked.
+            let (xj, yj) = gather_xy(clamped, slot.as_ptr(), base, gather);
             let (rx, ry) = (_mm512_sub_ps(xi, xj), _mm512_sub_ps(yi, yj));
             let rl = _mm512_sqrt_ps(_mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry)));
             let q = _mm512_mul_ps(rl, c(inv_h));
-            let pair = _mm512_cmplt_epu32_mask(_mm512_set1_epi32(s as i32), lens);
             let inner = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(q, c(0.5));
             let inside = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, c(1.0));
             // W: k·(6q³ − 6q² + 1) inside q ≤ ½, 2k·(1 − q)³ up to 1, 0 beyond.
@@ -970,7 +1081,11 @@ pub(crate) mod avx512 {
             // ∇W = r·(dW/dq·(1/h)/|r|) where 1e-9 < |r| and q < 1, else 0.
             let has_grad = inside & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(rl, c(1.0e-9)) & pair;
             let scale = _mm512_maskz_div_ps(has_grad, _mm512_mul_ps(d, c(inv_h)), rl);
-            let (gxv, gyv) = (_mm512_mul_ps(rx, scale), _mm512_mul_ps(ry, scale));
+            // Padding stores +0 (its r, taken from another particle, could carry a sign).
+            let (gxv, gyv) = (
+                _mm512_maskz_mul_ps(pair, rx, scale),
+                _mm512_maskz_mul_ps(pair, ry, scale),
+            );
             _mm512_storeu_ps(gx.as_mut_ptr().add(kk), gxv);
             _mm512_storeu_ps(gy.as_mut_ptr().add(kk), gyv);
             // Sums over real pairs only (padding lanes keep their value).
@@ -1726,6 +1841,10 @@ mod tests {
                     .map(|x| x.to_bits()),
             );
         }
+        // The density pass writes the same indices as `build` (the SIMD path reads them from
+        // the lists itself).
+        assert_eq!(filled.absolute_indices(), blocks.absolute_indices());
+        assert_eq!(filled.relative_indices(), blocks.relative_indices());
         bits.extend(writer_sums);
         bits.extend(
             filled
@@ -1869,6 +1988,20 @@ mod tests {
         let (lists, grads) = random_lists_ending_with(40, Some(40));
         let mut blocks = BlockedPairs::default();
         blocks.build(&lists, &grads);
+    }
+
+    #[test]
+    #[should_panic(expected = "neighbour index out of range")]
+    fn the_density_pass_refuses_a_neighbour_index_past_the_particles() {
+        // The SIMD path reads the lists itself; it checks before it reads positions.
+        let (lists, _) = random_lists_ending_with(40, Some(40));
+        let pos = vec![Vec2::ZERO; 40];
+        let kernel = CubicSpline::new(0.04);
+        let mut blocks = BlockedPairs::default();
+        blocks.prepare(&lists);
+        for (b, mut w) in blocks.writers(1).into_iter().enumerate() {
+            w.fill_block(b, &lists, &pos, &kernel, 0.5, 0.1);
+        }
     }
 
     #[test]
