@@ -340,8 +340,9 @@ impl BlockedPairs {
 
     /// The residual pass of one Jacobi iteration over block `b` (see [`ResidualTerms`]):
     /// writes the relative density rates `r_i` of the block's particles into `rate` and
-    /// their `Δκ_i` into `delta` (one entry per particle of the block in each), and returns
-    /// the sum and the largest of their residuals `e_i`, the sum taken lane by lane in f64.
+    /// their `Δκ_i` into `delta` (one entry per particle of the block in each), and their
+    /// residuals `e_i` into `errors`, lane by lane (0 in the lanes past the last particle;
+    /// [`crate::reduce::fold_block_sums`] sums them).
     #[inline]
     pub fn residual_block(
         &self,
@@ -350,7 +351,8 @@ impl BlockedPairs {
         terms: &ResidualTerms,
         delta: &mut [f32],
         rate: &mut [f32],
-    ) -> (f64, f64) {
+        errors: &mut [f32; LANES],
+    ) {
         let lanes = self.lanes_of(b);
         assert!(vel.len() >= self.n && terms.holds(self.n));
         assert!(delta.len() == lanes && rate.len() == lanes);
@@ -372,22 +374,21 @@ impl BlockedPairs {
                         terms,
                         delta,
                         rate,
+                        errors,
                         self.gather(),
                     )
                 };
             }
             scalar_velocity_gradient_dots(idx, first, gx, gy, vel)
         });
-        let (mut sum, mut max) = (0.0f64, 0.0f64);
+        *errors = [0.0; LANES];
         for (l, (d, r)) in delta.iter_mut().zip(rate.iter_mut()).enumerate() {
             let i = b * LANES + l;
             *r = vel[i].dot(terms.grad_sum[i]) - terms.volume * fluid[l] - terms.wall_flux[i];
             let e = (terms.source[i] + terms.rate_scale * *r).max(0.0);
             *d = e * terms.factor[i] * terms.increment_scale;
-            sum += e as f64;
-            max = max.max(e as f64);
+            errors[l] = e;
         }
-        (sum, max)
     }
 
     /// Apply the stiffness field `kappa` to the velocities of block `b`'s particles (`vel`,
@@ -1417,8 +1418,9 @@ pub(crate) mod avx512 {
         terms: &super::ResidualTerms,
         delta: &mut [f32],
         rate: &mut [f32],
+        errors: &mut [f32; LANES],
         gather: Gather,
-    ) -> (f64, f64) {
+    ) {
         let lanes = delta.len();
         let fluid = velocity_gradient_dot_lanes(idx, first, gx, gy, vel, gather);
         let m = lane_mask(lanes);
@@ -1443,14 +1445,7 @@ pub(crate) mod avx512 {
             c(terms.increment_scale),
         );
         _mm512_mask_storeu_ps(delta.as_mut_ptr(), m, d);
-        let mut es = [0.0f32; LANES];
-        _mm512_storeu_ps(es.as_mut_ptr(), e);
-        let (mut sum, mut max) = (0.0f64, 0.0f64);
-        for &e in &es[..lanes] {
-            sum += e as f64;
-            max = max.max(e as f64);
-        }
-        (sum, max)
+        _mm512_storeu_ps(errors.as_mut_ptr(), _mm512_maskz_mov_ps(m, e));
     }
 
     /// [`super::BlockedPairs::apply_block`]: the pair loop of [`weighted_gradient_sums`],
@@ -1722,13 +1717,17 @@ mod tests {
                 let mut rates = vec![0.0f32; n];
                 for b in 0..blocks.blocks() {
                     let r = b * LANES..((b + 1) * LANES).min(n);
-                    let (sum, max) = blocks.residual_block(
+                    let mut errors = [f32::NAN; LANES];
+                    blocks.residual_block(
                         b,
                         &vel,
                         &terms,
                         &mut delta[r.clone()],
                         &mut rates[r.clone()],
+                        &mut errors,
                     );
+                    // Lanes past the last particle hold 0, which adds nothing to the sums.
+                    assert!(errors[r.len()..].iter().all(|e| e.to_bits() == 0));
                     blocks.apply_block(
                         b,
                         terms.volume,
@@ -1745,6 +1744,7 @@ mod tests {
                         let rate = vel[i].dot(grad_sum[i]) - 0.7 * dots[l] - wall_flux[i];
                         assert_eq!(rates[i].to_bits(), rate.to_bits(), "simd {simd}, {i}");
                         let e = (source[i] + 0.25 * rate).max(0.0);
+                        assert_eq!(errors[l].to_bits(), e.to_bits(), "simd {simd}, {i}");
                         let d = e * factor[i] * 3.0;
                         assert_eq!(delta[i].to_bits(), d.to_bits(), "simd {simd}, n {n}, {i}");
                         (want_sum, want_max) = (want_sum + e as f64, want_max.max(e as f64));
@@ -1767,6 +1767,9 @@ mod tests {
                         let e64 = (source[i] as f64 + 0.25 * rate64).max(0.0);
                         assert!((e as f64 - e64).abs() < 1e-5, "simd {simd}, {i}");
                     }
+                    let mut group = [[0.0; LANES]; crate::reduce::BLOCKS_TOGETHER];
+                    group[0] = errors;
+                    let (sum, max) = crate::reduce::fold_block_sums((0.0, 0.0), &group, 1);
                     assert_eq!(sum.to_bits(), want_sum.to_bits(), "simd {simd}, block {b}");
                     assert_eq!(max, want_max, "simd {simd}, block {b}");
                 }

@@ -26,6 +26,41 @@ pub fn add_sum_max(a: (f64, f64), b: (f64, f64)) -> (f64, f64) {
     (a.0 + b.0, a.1.max(b.1))
 }
 
+/// Blocks whose sums [`fold_block_sums`] runs side by side.
+pub const BLOCKS_TOGETHER: usize = 8;
+
+/// Fold the first `count` of 8 blocks of 16 values into `acc` in block order: each block's
+/// sum taken lane by lane from 0 in f64, and its largest value, added with [`add_sum_max`].
+/// The same bits as folding each block's own sum in turn, but the 8 blocks' sums run side
+/// by side (in registers, two to a vector): one block's 16 dependent additions are a
+/// latency chain that cost 2 % of a 100k step when run one block at a time.
+// Indexed loops: lane-major across the blocks is the order that interleaves the chains.
+#[allow(clippy::needless_range_loop)]
+#[inline]
+pub fn fold_block_sums(
+    mut acc: (f64, f64),
+    blocks: &[[f32; 16]; BLOCKS_TOGETHER],
+    count: usize,
+) -> (f64, f64) {
+    let mut sums = [0.0f64; BLOCKS_TOGETHER];
+    let mut maxima = [0.0f32; BLOCKS_TOGETHER];
+    for lane in 0..16 {
+        for k in 0..BLOCKS_TOGETHER {
+            let e = blocks[k][lane];
+            sums[k] += e as f64;
+            // The largest f32 is the largest f64 too. A comparison rather than `f32::max`,
+            // whose NaN rule costs more; a NaN is not kept either way.
+            if e > maxima[k] {
+                maxima[k] = e;
+            }
+        }
+    }
+    for k in 0..count.min(BLOCKS_TOGETHER) {
+        acc = add_sum_max(acc, (sums[k], maxima[k] as f64));
+    }
+    acc
+}
+
 /// The `(sum, max)` of each part, computed in parallel (at most [`MAX_PARTS`] parts, whose
 /// bounds the caller fixed), combined in part order.
 pub fn combine_in_order(parts: impl IndexedParallelIterator<Item = (f64, f64)>) -> (f64, f64) {
@@ -102,5 +137,44 @@ mod tests {
         }
         assert_eq!(sum_and_max(&[] as &[f64], |&v| v), (0.0, 0.0));
         assert_eq!(sum_and_max(&[2.5f64], |&v| v), (2.5, 2.5));
+    }
+
+    /// Side by side or one block at a time, the blocks' sums are the same bits, for any
+    /// number of blocks (partial groups included) and a running total to start from.
+    #[test]
+    fn block_sums_side_by_side_match_one_block_at_a_time() {
+        // Values spread over many magnitudes, so that every addition rounds.
+        let value = |k: usize| {
+            let x = ((k as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40) as f32;
+            x * 10f32.powi((k % 31) as i32 - 15)
+        };
+        for count in [0, 1, 7, 8, 9, 23] {
+            let blocks: Vec<[f32; 16]> = (0..count)
+                .map(|b| std::array::from_fn(|l| value(b * 16 + l)))
+                .collect();
+            let start = (0.1, 0.5);
+            let want = blocks.iter().fold(start, |acc, block| {
+                let (mut sum, mut max) = (0.0f64, 0.0f64);
+                for &e in block {
+                    sum += e as f64;
+                    max = max.max(e as f64);
+                }
+                add_sum_max(acc, (sum, max))
+            });
+            let mut got = start;
+            for group in blocks.chunks(BLOCKS_TOGETHER) {
+                // Whatever the unused blocks hold is left out.
+                let mut padded = [[f32::MAX; 16]; BLOCKS_TOGETHER];
+                padded[..group.len()].copy_from_slice(group);
+                got = fold_block_sums(got, &padded, group.len());
+            }
+            assert_eq!(got.0.to_bits(), want.0.to_bits(), "{count} blocks");
+            assert_eq!(got.1.to_bits(), want.1.to_bits(), "{count} blocks");
+            // And the order matters here: a sum over all values at once differs.
+            if count >= 8 {
+                let flat: f64 = blocks.iter().flatten().map(|&e| e as f64).sum::<f64>() + 0.1;
+                assert_ne!(flat.to_bits(), want.0.to_bits(), "{count}: a real test");
+            }
+        }
     }
 }

@@ -219,7 +219,8 @@ pub fn density_rates(volume: f32, vel: &[Vec2], nb: &Neighborhood) -> Vec<f32> {
         .zip(unused.par_chunks_mut(LANES))
         .enumerate()
         .for_each(|(b, (r, d))| {
-            nb.blocks.residual_block(b, vel, &terms, d, r);
+            nb.blocks
+                .residual_block(b, vel, &terms, d, r, &mut [0.0; LANES]);
         });
     rates
 }
@@ -348,14 +349,21 @@ fn jacobi_solve(
             .zip(rate.par_chunks_mut(part))
             .enumerate()
             .map(|(p, (d, r))| {
-                d.chunks_mut(LANES)
-                    .zip(r.chunks_mut(LANES))
-                    .enumerate()
-                    .map(|(k, (d, r))| {
-                        nb.blocks
-                            .residual_block(p * blocks_per_part + k, vel, &terms, d, r)
-                    })
-                    .fold((0.0, 0.0), reduce::add_sum_max)
+                // The residuals of a few blocks at a time, summed together.
+                const GROUP: usize = reduce::BLOCKS_TOGETHER;
+                let mut errors = [[0.0f32; LANES]; GROUP];
+                let mut acc = (0.0, 0.0);
+                let groups = d.chunks_mut(GROUP * LANES).zip(r.chunks_mut(GROUP * LANES));
+                for (g, (d, r)) in groups.enumerate() {
+                    let blocks = d.len().div_ceil(LANES);
+                    let chunks = d.chunks_mut(LANES).zip(r.chunks_mut(LANES));
+                    for (k, ((d, r), e)) in chunks.zip(&mut errors).enumerate() {
+                        let b = p * blocks_per_part + g * GROUP + k;
+                        nb.blocks.residual_block(b, vel, &terms, d, r, e);
+                    }
+                    acc = reduce::fold_block_sums(acc, &errors, blocks);
+                }
+                acc
             });
         let (sum, max) = reduce::combine_in_order(parts);
         (sum / n as f64 * to_pct, max * to_pct)
