@@ -304,7 +304,7 @@ impl BlockedPairs {
             #[cfg(target_arch = "x86_64")]
             if self.avx512 {
                 // SAFETY: the CPU has AVX-512F (checked in `prepare`), and every index is
-                // below `self.n <= s.len()` (checked when written, `BlockWriter::lane_indices`).
+                // below `self.n <= s.len()` (checked when written, by `BlockWriter`).
                 return unsafe {
                     avx512::weighted_gradient_sums(idx, first, gx, gy, s, self.gather())
                 };
