@@ -73,7 +73,14 @@ enum IndicesMut<'a> {
 
 /// Runs `$body` with `$i` bound to the index slice of `$indices`, whichever type it has:
 /// the body is compiled once per [`SlotIndex`] type, so the kernels it calls are too.
+/// `with_indices!(mut ...)` does the same for an [`IndicesMut`].
 macro_rules! with_indices {
+    (mut $indices:expr, |$i:ident| $body:expr) => {
+        match $indices {
+            IndicesMut::Absolute($i) => $body,
+            IndicesMut::Relative($i) => $body,
+        }
+    };
     ($indices:expr, |$i:ident| $body:expr) => {
         match $indices {
             Indices::Absolute($i) => $body,
@@ -177,35 +184,39 @@ impl BlockedPairs {
         self.n = n;
         self.avx512 = !self.portable_only && simd_available();
         let blocks = n.div_ceil(LANES);
-        // Each block's width (its longest list) in parallel, then their running sum.
+        // In one parallel pass over the blocks: each block's width (its longest list), and
+        // whether its lists fit relative indices. Ascending lists span from their first entry
+        // to their last; a lane's padding is within its block.
+        let try_relative = !self.absolute_only && lists.ascending();
         self.slot_start.resize(blocks + 1, 0);
         self.slot_start[0] = 0;
-        self.slot_start[1..]
+        self.narrow = self.slot_start[1..]
             .par_iter_mut()
             .enumerate()
-            .for_each(|(b, width)| {
-                *width = (b * LANES..((b + 1) * LANES).min(n))
+            .map(|(b, width)| {
+                let first = b * LANES;
+                let particles = first..(first + LANES).min(n);
+                *width = particles
+                    .clone()
                     .map(|i| lists.offsets[i + 1] - lists.offsets[i])
                     .max()
                     .unwrap_or(0);
-            });
+                try_relative
+                    && particles.into_iter().all(|i| match lists.of(i) {
+                        [] => true,
+                        list => {
+                            i16::encode(list[0], first).is_some()
+                                && i16::encode(list[list.len() - 1], first).is_some()
+                        }
+                    })
+            })
+            // Not `all`: it would stop early and leave widths unwritten.
+            .fold(|| true, |fit, block_fits| fit && block_fits)
+            .reduce(|| true, |a, b| a && b)
+            && try_relative;
         for b in 0..blocks {
             self.slot_start[b + 1] += self.slot_start[b];
         }
-        // Ascending lists span from their first entry to their last; a lane's padding is
-        // within its block.
-        self.narrow = !self.absolute_only
-            && lists.ascending()
-            && (0..blocks).into_par_iter().all(|b| {
-                (b * LANES..((b + 1) * LANES).min(n)).all(|i| match lists.of(i) {
-                    [] => true,
-                    list => {
-                        let first = b * LANES;
-                        i16::encode(list[0], first).is_some()
-                            && i16::encode(list[list.len() - 1], first).is_some()
-                    }
-                })
-            });
         let entries = self.slot_start[blocks] as usize * LANES;
         if self.narrow {
             self.index.clear();
@@ -635,10 +646,12 @@ impl BlockWriter<'_> {
             list.iter().all(|&j| (j as usize) < self.n),
             "neighbour index out of range"
         );
-        match &mut self.index {
-            IndicesMut::Absolute(index) => write_lane_indices(&mut index[e], i, self.n, list),
-            IndicesMut::Relative(index) => write_lane_indices(&mut index[e], i, self.n, list),
-        }
+        with_indices!(mut &mut self.index, |index| write_lane_indices(
+            &mut index[e],
+            i,
+            self.n,
+            list
+        ))
     }
 
     /// Write particle `i`'s lane: its neighbours `list` with gradients `grad(j)` (called once
@@ -701,34 +714,19 @@ impl BlockWriter<'_> {
             // slots, no list is longer than that (asserted above), and `pos` holds the `n`
             // particles the kernel checks every index against.
             return unsafe {
-                match &mut self.index {
-                    IndicesMut::Absolute(index) => avx512::fill_fluid_block(
-                        &lists,
-                        &mut index[e],
-                        gx,
-                        gy,
-                        &xi,
-                        &yi,
-                        pos,
-                        kernel,
-                        volume,
-                        start,
-                        self.gather,
-                    ),
-                    IndicesMut::Relative(index) => avx512::fill_fluid_block(
-                        &lists,
-                        &mut index[e],
-                        gx,
-                        gy,
-                        &xi,
-                        &yi,
-                        pos,
-                        kernel,
-                        volume,
-                        start,
-                        self.gather,
-                    ),
-                }
+                with_indices!(mut &mut self.index, |index| avx512::fill_fluid_block(
+                    &lists,
+                    &mut index[e],
+                    gx,
+                    gy,
+                    &xi,
+                    &yi,
+                    pos,
+                    kernel,
+                    volume,
+                    start,
+                    self.gather,
+                ))
             };
         }
         for (lane, list) in lane_lists.iter().enumerate() {
@@ -745,12 +743,20 @@ impl BlockWriter<'_> {
     }
 }
 
+/// What lane `i` holds past the end of its list: the particle itself, or for a lane past the
+/// last particle `n - 1`, its block's first particle (a valid index, and one a relative
+/// index can always express).
+#[inline]
+fn padding(i: usize, n: usize) -> u32 {
+    (if i < n { i } else { i - i % LANES }) as u32
+}
+
 /// Write particle `i`'s lane of a block (`index`, whole slots): its neighbours `list`, then
 /// padding with the particle itself, or with the block's first particle for a lane past the
 /// last particle `n - 1`. The indices must be below `n`.
 fn write_lane_indices<I: SlotIndex>(index: &mut [I], i: usize, n: usize, list: &[u32]) {
     let (first, lane) = (i - i % LANES, i % LANES);
-    let pad = if i < n { i } else { first } as u32;
+    let pad = padding(i, n);
     let encode = |j| I::encode(j, first).expect("a neighbour too far for 16-bit indices");
     let pad = encode(pad);
     for (s, slot) in index.chunks_exact_mut(LANES).enumerate() {
@@ -975,13 +981,7 @@ pub(crate) mod avx512 {
                     list => list,
                 }),
                 lens: std::array::from_fn(|l| lists[l].len() as u32),
-                pad: std::array::from_fn(|l| {
-                    if first + l < n {
-                        first + l
-                    } else {
-                        first
-                    }
-                } as u32),
+                pad: std::array::from_fn(|l| super::padding(first + l, n)),
                 first,
                 n,
             }

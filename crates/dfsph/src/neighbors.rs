@@ -210,13 +210,12 @@ impl Grid {
             self.order[*slot as usize] = i as u32;
             *slot += 1;
         }
-        self.sorted_keys.clear();
+        // The sorted copy of the positions and their keys, in one parallel pass.
         let keys = &self.keys;
-        self.sorted_keys
-            .par_extend(self.order.par_iter().map(|&i| keys[i as usize]));
-        self.sorted.clear();
-        self.sorted
-            .par_extend(self.order.par_iter().map(|&i| points[i as usize]));
+        self.order
+            .par_iter()
+            .map(|&i| (points[i as usize], keys[i as usize]))
+            .unzip_into_vecs(&mut self.sorted, &mut self.sorted_keys);
         &self.order
     }
 
