@@ -22,6 +22,7 @@ pub mod boundary;
 pub mod forces;
 pub mod kernel;
 pub mod neighbors;
+pub mod parallel;
 pub mod particles;
 pub mod probes;
 pub mod recording;

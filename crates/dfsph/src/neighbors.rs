@@ -12,6 +12,7 @@
 //! very far away) the keys fall back to a hash of the cell coordinates, which keeps memory
 //! proportional to the point count and results exact (every candidate is distance-checked).
 
+use crate::parallel::LIGHT_PASS_MIN_ITEMS;
 use glam::Vec2;
 use rayon::prelude::*;
 
@@ -191,6 +192,7 @@ impl Grid {
         keys.resize(n, 0);
         keys.par_iter_mut()
             .zip(points.par_iter())
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
             .for_each(|(k, &p)| *k = self.point_key(p));
         self.keys = keys;
         self.cell_start.clear();
@@ -214,6 +216,7 @@ impl Grid {
         let keys = &self.keys;
         self.order
             .par_iter()
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
             .map(|&i| (points[i as usize], keys[i as usize]))
             .unzip_into_vecs(&mut self.sorted, &mut self.sorted_keys);
         &self.order
@@ -551,6 +554,7 @@ fn bounds(points: &[Vec2]) -> (Vec2, Vec2) {
     }
     points
         .par_iter()
+        .with_min_len(LIGHT_PASS_MIN_ITEMS)
         .fold(
             || (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)),
             |(lo, hi), &p| (lo.min(p), hi.max(p)),
@@ -568,7 +572,12 @@ pub fn permute<T: Copy + Send + Sync>(values: &mut Vec<T>, order: &[u32], scratc
     scratch.clear();
     // In parallel: five arrays of the fluid are reordered every step, and a serial copy
     // leaves the second core idle meanwhile.
-    scratch.par_extend(order.par_iter().map(|&i| values[i as usize]));
+    scratch.par_extend(
+        order
+            .par_iter()
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
+            .map(|&i| values[i as usize]),
+    );
     std::mem::swap(values, scratch);
 }
 

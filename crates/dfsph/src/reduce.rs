@@ -8,6 +8,7 @@
 //! most [`MAX_PARTS`] parts whose bounds depend only on the item count; each part is reduced
 //! in item order, and the parts in part order.
 
+use crate::parallel::LIGHT_PASS_MIN_ITEMS;
 use rayon::prelude::*;
 
 /// The most parts a reduction is cut into; its partial results live on the stack.
@@ -80,7 +81,10 @@ pub fn combine_in_order(parts: impl IndexedParallelIterator<Item = (f64, f64)>) 
 /// count and any work split.
 pub fn sum_and_max<T: Sync>(items: &[T], value: impl Fn(&T) -> f64 + Sync) -> (f64, f64) {
     let per_part = part_units(items.len(), 1024);
-    combine_in_order(items.par_chunks(per_part).map(|chunk| {
+    let parts = items
+        .par_chunks(per_part)
+        .with_min_len(LIGHT_PASS_MIN_ITEMS.div_ceil(per_part));
+    combine_in_order(parts.map(|chunk| {
         chunk.iter().fold((0.0, 0.0), |acc, x| {
             let v = value(x);
             add_sum_max(acc, (v, v))

@@ -1,6 +1,7 @@
 //! The simulation: owns the particle state, runs one DFSPH (or WCSPH) step at a time with CFL
 //! time stepping, and reports diagnostics for every step.
 
+use crate::parallel::LIGHT_PASS_MIN_ITEMS;
 use glam::Vec2;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -367,6 +368,7 @@ impl Simulation {
                 .velocity
                 .par_iter_mut()
                 .zip(self.fluid.acceleration.par_iter())
+                .with_min_len(LIGHT_PASS_MIN_ITEMS)
                 .for_each(|(v, &a)| *v += dt * a);
 
             let report = match method {
@@ -458,6 +460,7 @@ impl Simulation {
             .position
             .par_iter_mut()
             .zip(self.fluid.velocity.par_iter())
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
             .for_each(|(x, &v)| *x += dt * v);
         self.move_bodies(dt);
         let (clamped, non_finite) = self.enforce_tank();
@@ -510,6 +513,7 @@ impl Simulation {
             .fluid
             .velocity
             .par_iter()
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
             .map(|v| {
                 if v.is_finite() {
                     v.length_squared()
@@ -529,6 +533,7 @@ impl Simulation {
             .fluid
             .velocity
             .par_iter()
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
             .map(|v| v.length_squared())
             .reduce(|| 0.0, f32::max)
             .sqrt();
@@ -588,7 +593,11 @@ impl Simulation {
             for body in &mut self.bodies {
                 body.velocity = v;
             }
-            self.boundary.velocity.par_iter_mut().for_each(|u| *u = v);
+            self.boundary
+                .velocity
+                .par_iter_mut()
+                .with_min_len(LIGHT_PASS_MIN_ITEMS)
+                .for_each(|u| *u = v);
         }
     }
 
@@ -604,6 +613,7 @@ impl Simulation {
             .position
             .par_iter_mut()
             .zip(self.boundary.velocity.par_iter())
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
             .for_each(|(x, &v)| *x += dt * v);
     }
 
@@ -631,6 +641,7 @@ impl Simulation {
             .position
             .par_iter_mut()
             .zip(self.fluid.velocity.par_iter_mut())
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
             .map(|(x, v)| {
                 if !(x.is_finite() && v.is_finite()) {
                     *x = centre;

@@ -17,6 +17,7 @@
 //! must not be pulled together); the divergence solve drives `Dρ_i/Dt` to 0 with
 //! `Δκ_i = max(Dρ_i/Dt/ρ0, 0)·a_i`. Both are Jacobi iterations over the same two passes.
 
+use crate::parallel::LIGHT_PASS_MIN_ITEMS;
 use glam::Vec2;
 use rayon::prelude::*;
 
@@ -391,7 +392,11 @@ fn jacobi_solve(
             // Jacobi is not guaranteed to converge (dense clusters, e.g. fluid pulled into a
             // point): an iteration that makes the error grow is taken back and the solve
             // stops, rather than feeding the growth into the velocities.
-            scratch.previous_delta.par_iter_mut().for_each(|d| *d = -*d);
+            scratch
+                .previous_delta
+                .par_iter_mut()
+                .with_min_len(LIGHT_PASS_MIN_ITEMS)
+                .for_each(|d| *d = -*d);
             apply_increment(
                 volume,
                 &scratch.previous_delta,
@@ -429,7 +434,10 @@ pub fn divergence_solve(
     let mut total = std::mem::take(&mut fluid.divergence_stiffness);
     if warm_start {
         let w = warm_factor();
-        total.par_iter_mut().for_each(|k| *k = k.max(0.0) * w);
+        total
+            .par_iter_mut()
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
+            .for_each(|k| *k = k.max(0.0) * w);
         apply_pressure(volume, &total, &mut fluid.velocity, nb);
     } else {
         total.iter_mut().for_each(|k| *k = 0.0);
@@ -440,6 +448,7 @@ pub fn divergence_solve(
     scratch
         .source
         .par_iter_mut()
+        .with_min_len(LIGHT_PASS_MIN_ITEMS)
         .enumerate()
         .for_each(|(i, s)| {
             let neighbors = nb.fluid.range(i).len() + nb.boundary.range(i).len();
@@ -486,7 +495,10 @@ pub fn density_solve(
     let mut total = std::mem::take(&mut fluid.pressure_over_rho0);
     if warm_start {
         let w = warm_factor();
-        total.par_iter_mut().for_each(|p| *p = p.max(0.0) * dt * w);
+        total
+            .par_iter_mut()
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
+            .for_each(|p| *p = p.max(0.0) * dt * w);
         apply_pressure(volume, &total, &mut fluid.velocity, nb);
     } else {
         total.iter_mut().for_each(|k| *k = 0.0);
@@ -496,6 +508,7 @@ pub fn density_solve(
         .source
         .par_iter_mut()
         .zip(fluid.density_ratio.par_iter())
+        .with_min_len(LIGHT_PASS_MIN_ITEMS)
         .for_each(|(s, &density)| *s = (density - 1.0).min(max_correction));
     let report = jacobi_solve(
         volume,
@@ -508,7 +521,10 @@ pub fn density_solve(
         1.0 / dt,
         &mut total,
     );
-    total.par_iter_mut().for_each(|k| *k /= dt);
+    total
+        .par_iter_mut()
+        .with_min_len(LIGHT_PASS_MIN_ITEMS)
+        .for_each(|k| *k /= dt);
     fluid.pressure_over_rho0 = total;
     report
 }
