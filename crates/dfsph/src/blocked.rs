@@ -151,6 +151,11 @@ impl BlockedPairs {
         self.grad_x.len()
     }
 
+    /// Slots of blocks `0..b` together: a pass's cost up to block `b`, to balance shares.
+    pub fn slots_before(&self, b: usize) -> usize {
+        self.slot_start[b] as usize
+    }
+
     /// Whether the indices are stored in 16 bits, relative to each block's first particle.
     pub fn relative_indices(&self) -> bool {
         self.narrow

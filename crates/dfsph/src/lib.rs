@@ -21,6 +21,7 @@ pub mod blocked;
 pub mod boundary;
 pub mod forces;
 pub mod kernel;
+pub mod lockstep;
 pub mod neighbors;
 pub mod parallel;
 pub mod particles;

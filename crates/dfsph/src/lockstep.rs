@@ -1,0 +1,296 @@
+//! A parallel region whose workers run a sequence of passes in step, with a barrier between
+//! passes, instead of one rayon fork-join per pass.
+//!
+//! A Jacobi iteration is two passes (apply an increment, then compute the residuals), and a
+//! step runs ten or more iterations. Handed to rayon, every pass is a fork-join: on the
+//! 2-core virtual machine of docs/PERFORMANCE.md that costs 2–8 µs (the second worker has
+//! to notice the task, steal it and signal its end), where the pass itself takes 20–40 µs at
+//! 5,000 particles. Inside one region, the workers of the pool meet at a spinning barrier
+//! between passes instead, which costs a fraction of a microsecond.
+//!
+//! The price is that a pass's work is split up front (each worker takes a fixed share),
+//! not stolen, so the caller balances the shares; and that the workers share arrays
+//! that some of them write: [`Shared`] hands out the parts, and its `unsafe` methods state
+//! what the barrier must order.
+
+use std::marker::PhantomData;
+use std::ops::Range;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+/// Busy-wait rounds at a barrier before the waiting worker starts yielding its core (about
+/// 30–60 µs of `pause`): a pass's shares end within microseconds of each other, but a
+/// worker descheduled by the host, or sharing its core with another thread, may be late by
+/// a whole time slice, and spinning through that would keep the late one off the core.
+const SPINS_BEFORE_YIELD: u32 = 1 << 11;
+
+/// One worker's view of the region.
+pub struct Team<'a> {
+    index: usize,
+    count: usize,
+    barrier: &'a Barrier,
+}
+
+impl Team<'_> {
+    /// This worker's number, `0..count()`.
+    pub fn index(&self) -> usize {
+        self.index
+    }
+
+    /// Workers in the region.
+    pub fn count(&self) -> usize {
+        self.count
+    }
+
+    /// Wait until every worker of the region has reached this call: what any worker wrote
+    /// before it is visible to every worker after it.
+    pub fn wait(&self) {
+        self.barrier.wait();
+    }
+
+    /// This worker's share of `0..items`, cut where `cost_before(k)` (non-decreasing, the
+    /// cost of items `0..k`) reaches its fraction of the total; consecutive workers get
+    /// consecutive shares that cover `0..items`. The same worker gets the same share in
+    /// every pass, so the data it writes stays in its core's cache.
+    pub fn share(&self, items: usize, cost_before: impl Fn(usize) -> u64) -> Range<usize> {
+        let total = cost_before(items);
+        let cut = |w: usize| -> usize {
+            if w == 0 {
+                return 0;
+            }
+            if w == self.count {
+                return items;
+            }
+            let target = (total as u128 * w as u128 / self.count as u128) as u64;
+            // The first k whose cost reaches the target.
+            let (mut lo, mut hi) = (0, items);
+            while lo < hi {
+                let mid = (lo + hi) / 2;
+                if cost_before(mid) < target {
+                    lo = mid + 1;
+                } else {
+                    hi = mid;
+                }
+            }
+            lo
+        };
+        cut(self.index)..cut(self.index + 1)
+    }
+}
+
+/// Run `body` on every worker of the current rayon pool at once (one worker when called
+/// outside any pool with a one-thread global pool). Returns each worker's result, in worker
+/// order.
+///
+/// If one worker panics, the others panic at their next [`Team::wait`] rather than wait
+/// for it forever, and the panic reaches the caller.
+pub fn run<R: Send>(body: impl Fn(&Team) -> R + Sync) -> Vec<R> {
+    let count = rayon::current_num_threads();
+    let barrier = Barrier {
+        arrived: AtomicUsize::new(0),
+        generation: AtomicUsize::new(0),
+        count,
+        poisoned: AtomicBool::new(false),
+    };
+    if count == 1 {
+        return vec![body(&Team {
+            index: 0,
+            count,
+            barrier: &barrier,
+        })];
+    }
+    rayon::broadcast(|ctx| {
+        let team = Team {
+            index: ctx.index(),
+            count: ctx.num_threads(),
+            barrier: &barrier,
+        };
+        let guard = PoisonOnUnwind(&barrier);
+        let result = body(&team);
+        std::mem::forget(guard);
+        result
+    })
+}
+
+/// Counting barrier for the workers of one region.
+struct Barrier {
+    arrived: AtomicUsize,
+    generation: AtomicUsize,
+    count: usize,
+    poisoned: AtomicBool,
+}
+
+impl Barrier {
+    fn wait(&self) {
+        if self.count == 1 {
+            return;
+        }
+        let generation = self.generation.load(Ordering::Acquire);
+        if self.arrived.fetch_add(1, Ordering::AcqRel) + 1 == self.count {
+            // The last to arrive opens the barrier. The reset is ordered before the new
+            // generation, which the others acquire before they can arrive again.
+            self.arrived.store(0, Ordering::Relaxed);
+            self.generation.store(generation + 1, Ordering::Release);
+            return;
+        }
+        let mut spins = 0;
+        while self.generation.load(Ordering::Acquire) == generation {
+            if self.poisoned.load(Ordering::Relaxed) {
+                panic!("another worker of the lockstep region panicked");
+            }
+            if spins < SPINS_BEFORE_YIELD {
+                spins += 1;
+                std::hint::spin_loop();
+            } else {
+                std::thread::yield_now();
+            }
+        }
+    }
+}
+
+/// Marks the barrier poisoned if the worker holding it unwinds.
+struct PoisonOnUnwind<'a>(&'a Barrier);
+
+impl Drop for PoisonOnUnwind<'_> {
+    fn drop(&mut self) {
+        self.0.poisoned.store(true, Ordering::Relaxed);
+    }
+}
+
+/// A slice the workers of a region share. Between two barriers, either every worker only
+/// reads it, or each worker writes (and reads) only its own part.
+pub struct Shared<'a, T> {
+    ptr: *mut T,
+    len: usize,
+    _borrow: PhantomData<&'a mut [T]>,
+}
+
+// SAFETY: access goes through the `unsafe` methods below, whose callers guarantee that no
+// element is written by one worker while another touches it.
+unsafe impl<T: Send + Sync> Sync for Shared<'_, T> {}
+
+impl<'a, T> Shared<'a, T> {
+    /// Share `values` for the region (borrowed until the `Shared` is dropped).
+    pub fn new(values: &'a mut [T]) -> Self {
+        Self {
+            ptr: values.as_mut_ptr(),
+            len: values.len(),
+            _borrow: PhantomData,
+        }
+    }
+
+    /// Elements `range`, to write.
+    ///
+    /// # Safety
+    /// Until this worker's next [`Team::wait`], no other worker reads or writes any element
+    /// of `range`, and this worker holds no other reference into it.
+    #[allow(clippy::mut_from_ref)]
+    pub unsafe fn part_mut(&self, range: Range<usize>) -> &mut [T] {
+        assert!(
+            range.start <= range.end && range.end <= self.len,
+            "part {range:?} of a shared slice of {}",
+            self.len
+        );
+        // SAFETY: in bounds (asserted); exclusive by the caller's guarantee.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr.add(range.start), range.len()) }
+    }
+
+    /// Every element, to read.
+    ///
+    /// # Safety
+    /// Until this worker's next [`Team::wait`], no worker writes any element.
+    pub unsafe fn read(&self) -> &[T] {
+        // SAFETY: the whole borrowed slice; unchanged by the caller's guarantee.
+        unsafe { std::slice::from_raw_parts(self.ptr, self.len) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pool(threads: usize) -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+    }
+
+    /// Every worker reads the whole array each round, after all wrote their parts: a
+    /// missing barrier, or shares that overlap or leave gaps, give another sum.
+    #[test]
+    fn workers_see_each_others_writes_after_the_barrier() {
+        for threads in [1, 2, 3, 4] {
+            let n = 1000;
+            let mut values = vec![1u64; n];
+            let shared = Shared::new(&mut values);
+            let sums = pool(threads).install(|| {
+                run(|team| {
+                    let mine = team.share(n, |k| k as u64);
+                    let mut seen = Vec::new();
+                    for _ in 0..50 {
+                        // SAFETY: shares are disjoint; reads happen between barriers.
+                        let part = unsafe { shared.part_mut(mine.clone()) };
+                        part.iter_mut().for_each(|v| *v *= 2);
+                        team.wait();
+                        seen.push(unsafe { shared.read() }.iter().sum::<u64>());
+                        team.wait();
+                    }
+                    (team.count(), seen)
+                })
+            });
+            assert_eq!(sums.len(), threads);
+            for (count, seen) in sums {
+                assert_eq!(count, threads);
+                let expected: Vec<u64> = (1..=50).map(|r| n as u64 * (1 << r)).collect();
+                assert_eq!(seen, expected);
+            }
+            assert!(values.iter().all(|&v| v == 1 << 50));
+        }
+    }
+
+    #[test]
+    fn shares_follow_the_cost_and_cover_the_items() {
+        let barrier = Barrier {
+            arrived: AtomicUsize::new(0),
+            generation: AtomicUsize::new(0),
+            count: 3,
+            poisoned: AtomicBool::new(false),
+        };
+        // Items 0..10 cost 1 each, items 10..20 cost 9 each: 100 in all.
+        let cost = |k: usize| (k.min(10) + 9 * k.saturating_sub(10)) as u64;
+        let shares: Vec<_> = (0..3)
+            .map(|index| {
+                Team {
+                    index,
+                    count: 3,
+                    barrier: &barrier,
+                }
+                .share(20, cost)
+            })
+            .collect();
+        // Cuts where the cost first reaches 33 and 66: k = 13 (cost 37), k = 17 (cost 73).
+        assert_eq!(shares, vec![0..13, 13..17, 17..20]);
+        let empty = Team {
+            index: 1,
+            count: 3,
+            barrier: &barrier,
+        }
+        .share(0, |_| 0);
+        assert_eq!(empty, 0..0);
+    }
+
+    #[test]
+    fn a_panicking_worker_reaches_the_caller_instead_of_hanging_the_others() {
+        let result = std::panic::catch_unwind(|| {
+            pool(2).install(|| {
+                run(|team| {
+                    if team.index() == 1 {
+                        panic!("worker 1 fails");
+                    }
+                    team.wait();
+                })
+            })
+        });
+        assert!(result.is_err());
+    }
+}
