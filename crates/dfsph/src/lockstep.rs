@@ -17,10 +17,11 @@ use std::marker::PhantomData;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
-/// Busy-wait rounds at a barrier before the waiting worker starts yielding its core (about
-/// 30–60 µs of `pause`): a pass's shares end within microseconds of each other, but a
-/// worker descheduled by the host, or sharing its core with another thread, may be late by
-/// a whole time slice, and spinning through that would keep the late one off the core.
+/// Busy-wait rounds at a barrier before the waiting worker starts yielding (about 30–60 µs
+/// of `pause`): a pass's shares end within microseconds of each other, but a worker
+/// descheduled by the host, or sharing its core with another thread, may be late by a whole
+/// time slice, and spinning through that would keep the late one off the core. After that
+/// the waiting worker runs the pool's pending work, if any, else yields its core.
 const SPINS_BEFORE_YIELD: u32 = 1 << 11;
 
 /// One worker's view of the region.
@@ -140,7 +141,9 @@ impl Barrier {
             if spins < SPINS_BEFORE_YIELD {
                 spins += 1;
                 std::hint::spin_loop();
-            } else {
+            } else if rayon::yield_now() != Some(rayon::Yield::Executed) {
+                // Nothing of the pool's to run meanwhile (running it keeps a region
+                // started by the worker we wait for from waiting on us): give the core away.
                 std::thread::yield_now();
             }
         }
@@ -277,6 +280,30 @@ mod tests {
         }
         .share(0, |_| 0);
         assert_eq!(empty, 0..0);
+    }
+
+    /// A region started inside another (as a second simulation stepped from within a
+    /// parallel job would): worker 1 waits at the outer barrier while the inner region
+    /// needs it. A barrier that only spins and sleeps would wait for ever; one that runs
+    /// the pool's pending work while it waits lets the inner region finish.
+    #[test]
+    fn a_region_inside_a_region_finishes() {
+        let inner_workers = pool(2).install(|| {
+            run(|team| {
+                let inner = if team.index() == 0 {
+                    run(|inner| {
+                        inner.wait();
+                        inner.index()
+                    })
+                    .len()
+                } else {
+                    0
+                };
+                team.wait();
+                inner
+            })
+        });
+        assert_eq!(inner_workers, vec![2, 0]);
     }
 
     #[test]
