@@ -8,14 +8,15 @@
 //! 5,000 particles. Inside one region, the workers of the pool meet at a spinning barrier
 //! between passes instead, which costs a fraction of a microsecond.
 //!
-//! The price is that a pass's work is split up front (each worker takes a fixed share),
-//! not stolen, so the caller balances the shares; and that the workers share arrays
-//! that some of them write: [`Shared`] hands out the parts, and its `unsafe` methods state
-//! what the barrier must order.
+//! A pass's parts are handed out without rayon's stealing: each worker starts on its own
+//! share, the same in every pass (so what it wrote stays in its core's cache), and a worker
+//! that runs out takes the parts the others have not reached yet ([`Team::parts`]). The
+//! workers share arrays that some of them write: [`Shared`] hands out the parts, and its
+//! `unsafe` methods state what the barrier must order.
 
 use std::marker::PhantomData;
 use std::ops::Range;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 
 /// Busy-wait rounds at a barrier before the waiting worker starts yielding (about 30–60 µs
 /// of `pause`): a pass's shares end within microseconds of each other, but a worker
@@ -76,6 +77,73 @@ impl Team<'_> {
         };
         cut(self.index)..cut(self.index + 1)
     }
+
+    /// The parts this worker runs in the current pass, given its `share` (from
+    /// [`Team::share`], the same in every pass): first its own share, front to back; then,
+    /// one at a time, parts from the back of other workers' shares that they have not
+    /// reached yet. So a worker that the host holds up is relieved, while in a pass where
+    /// both keep pace every part stays with its owner (and its data in the owner's cache).
+    /// Every worker must call this once per pass and drain it before its next
+    /// [`Team::wait`].
+    pub fn parts(&self, share: Range<usize>) -> Parts<'_> {
+        let mine = &self.barrier.shares[self.index];
+        // Before this, every part of the last pass was taken (the barrier ended it), so no
+        // worker can be taking from this share meanwhile.
+        mine.store(pack(share.start, share.end), Ordering::Release);
+        Parts {
+            team: self,
+            victim: self.index,
+        }
+    }
+}
+
+/// The iterator of [`Team::parts`].
+pub struct Parts<'a> {
+    team: &'a Team<'a>,
+    /// The worker whose share is taken from now: this worker's own first.
+    victim: usize,
+}
+
+impl Iterator for Parts<'_> {
+    type Item = usize;
+
+    fn next(&mut self) -> Option<usize> {
+        let team = self.team;
+        loop {
+            let own = self.victim == team.index;
+            let slot = &team.barrier.shares[self.victim];
+            let mut state = slot.load(Ordering::Acquire);
+            loop {
+                let (front, back) = unpack(state);
+                if front >= back {
+                    break;
+                }
+                // The owner takes from the front, the others from the back.
+                let (taken, next) = if own {
+                    (front, pack(front + 1, back))
+                } else {
+                    (back - 1, pack(front, back - 1))
+                };
+                match slot.compare_exchange_weak(state, next, Ordering::AcqRel, Ordering::Acquire) {
+                    Ok(_) => return Some(taken),
+                    Err(now) => state = now,
+                }
+            }
+            // This share is done: the next worker's, round to this one's own.
+            self.victim = (self.victim + 1) % team.count;
+            if self.victim == team.index {
+                return None;
+            }
+        }
+    }
+}
+
+fn pack(front: usize, back: usize) -> u64 {
+    ((front as u64) << 32) | back as u64
+}
+
+fn unpack(state: u64) -> (usize, usize) {
+    ((state >> 32) as usize, (state & 0xffff_ffff) as usize)
 }
 
 /// Run `body` on every worker of the current rayon pool at once (one worker when called
@@ -86,12 +154,7 @@ impl Team<'_> {
 /// for it forever, and the panic reaches the caller.
 pub fn run<R: Send>(body: impl Fn(&Team) -> R + Sync) -> Vec<R> {
     let count = rayon::current_num_threads();
-    let barrier = Barrier {
-        arrived: AtomicUsize::new(0),
-        generation: AtomicUsize::new(0),
-        count,
-        poisoned: AtomicBool::new(false),
-    };
+    let barrier = Barrier::new(count);
     if count == 1 {
         return vec![body(&Team {
             index: 0,
@@ -118,9 +181,36 @@ struct Barrier {
     generation: AtomicUsize,
     count: usize,
     poisoned: AtomicBool,
+    /// Per worker, the parts of its share not yet taken in the current pass, packed as
+    /// (front, back) ([`Team::parts`]); each on its own cache line.
+    shares: Vec<PaddedAtomic>,
+}
+
+/// An atomic alone on its cache line, so that the owner's updates do not contend with the
+/// other workers' slots.
+#[repr(align(64))]
+struct PaddedAtomic(AtomicU64);
+
+impl std::ops::Deref for PaddedAtomic {
+    type Target = AtomicU64;
+    fn deref(&self) -> &AtomicU64 {
+        &self.0
+    }
 }
 
 impl Barrier {
+    fn new(count: usize) -> Self {
+        Self {
+            arrived: AtomicUsize::new(0),
+            generation: AtomicUsize::new(0),
+            count,
+            poisoned: AtomicBool::new(false),
+            shares: (0..count)
+                .map(|_| PaddedAtomic(AtomicU64::new(0)))
+                .collect(),
+        }
+    }
+
     fn wait(&self) {
         if self.count == 1 {
             return;
@@ -251,14 +341,40 @@ mod tests {
         }
     }
 
+    /// Over many passes, every part is taken exactly once per pass; a worker held up (here
+    /// by sleeping) has parts of its share taken by the other.
+    #[test]
+    fn every_part_is_taken_once_and_a_slow_worker_is_relieved() {
+        use std::sync::atomic::AtomicU32;
+        let parts = 40;
+        let passes = 30;
+        let taken: Vec<AtomicU32> = (0..parts).map(|_| AtomicU32::new(0)).collect();
+        let per_worker = pool(2).install(|| {
+            run(|team| {
+                let share = team.share(parts, |k| k as u64);
+                let mut count = 0;
+                for _ in 0..passes {
+                    for p in team.parts(share.clone()) {
+                        if team.index() == 1 {
+                            std::thread::sleep(std::time::Duration::from_micros(200));
+                        }
+                        taken[p].fetch_add(1, Ordering::Relaxed);
+                        count += 1;
+                    }
+                    team.wait();
+                }
+                count
+            })
+        });
+        assert!(taken.iter().all(|t| t.load(Ordering::Relaxed) == passes));
+        assert_eq!(per_worker.iter().sum::<u32>(), parts as u32 * passes);
+        // Without taking from the slow share, worker 0 would run exactly its 20 per pass.
+        assert!(per_worker[0] > 20 * passes, "{per_worker:?}");
+    }
+
     #[test]
     fn shares_follow_the_cost_and_cover_the_items() {
-        let barrier = Barrier {
-            arrived: AtomicUsize::new(0),
-            generation: AtomicUsize::new(0),
-            count: 3,
-            poisoned: AtomicBool::new(false),
-        };
+        let barrier = Barrier::new(3);
         // Items 0..10 cost 1 each, items 10..20 cost 9 each: 100 in all.
         let cost = |k: usize| (k.min(10) + 9 * k.saturating_sub(10)) as u64;
         let shares: Vec<_> = (0..3)

@@ -299,11 +299,10 @@ impl SolverScratch {
 /// particle's stiffness only grows. What a previous step left too high is not taken back here;
 /// the warm start keeps only part of it (see [`warm_factor`]).
 ///
-/// The whole iteration runs in one [`lockstep`] region: each worker keeps the same share of
-/// blocks for every pass, and the workers meet at a barrier between passes, instead of one
-/// rayon fork-join per pass. Interleaved step by step with the fork-join version (same
-/// bits), the 2-thread step took 1–3 % less time at 5k particles and 3–6 % less at 20k; at
-/// 80k the two were level within the host's noise.
+/// The whole iteration runs in one [`lockstep`] region: each worker starts every pass on
+/// the same share of parts, takes what the other has not reached when its own is done, and
+/// the workers meet at a barrier between passes, instead of one rayon fork-join per pass
+/// (docs/PERFORMANCE.md has the measurements).
 #[allow(clippy::too_many_arguments)]
 fn jacobi_solve(
     volume: f32,
@@ -369,29 +368,26 @@ fn jacobi_solve(
         let my_parts = team.share(parts, |p| {
             nb.blocks.slots_before((p * blocks_per_part).min(blocks)) as u64
         });
-        let my_blocks = blocks_of(my_parts.clone());
-        let my_items = items_of(&my_blocks);
 
-        // The residuals of this worker's parts at the current velocities, written into
+        // The residuals at the current velocities, part by part, written into
         // `increments[buffer]` and `rates[buffer]` with the next increments; then, after the
         // barrier, the average and largest residual over all parts (every worker takes the
         // same sum in the same order, so all decide alike).
         let residuals = |buffer: usize| -> (f64, f64) {
-            // SAFETY: in this pass the velocities are only read, and each worker writes
-            // only its own items and parts; the barrier below ends the pass.
-            let (vel, delta, rate, sums) = unsafe {
-                (
-                    velocity.read(),
-                    increments[buffer].part_mut(my_items.clone()),
-                    rates[buffer].part_mut(my_items.clone()),
-                    part_sums.part_mut(my_parts.clone()),
-                )
-            };
-            for (p, sum) in my_parts.clone().zip(sums) {
+            // SAFETY: in this pass the velocities are only read; each part's items and sum
+            // are written by the one worker that took the part; the barrier below ends the
+            // pass.
+            let vel = unsafe { velocity.read() };
+            for p in team.parts(my_parts.clone()) {
                 let part_blocks = blocks_of(p..p + 1);
                 let items = items_of(&part_blocks);
-                let local = items.start - my_items.start..items.end - my_items.start;
-                let (d, r) = (&mut delta[local.clone()], &mut rate[local]);
+                let (d, r, sum) = unsafe {
+                    (
+                        increments[buffer].part_mut(items.clone()),
+                        rates[buffer].part_mut(items),
+                        &mut part_sums.part_mut(p..p + 1)[0],
+                    )
+                };
                 // The residuals of a few blocks at a time, summed together.
                 const GROUP: usize = reduce::BLOCKS_TOGETHER;
                 let mut errors = [[0.0f32; LANES]; GROUP];
@@ -417,22 +413,23 @@ fn jacobi_solve(
                 .fold((0.0, 0.0), reduce::add_sum_max);
             (sum / n as f64 * to_pct, max * to_pct)
         };
-        // Apply the increments in `increments[buffer]` to this worker's velocities and add
-        // them to its running totals.
+        // Apply the increments in `increments[buffer]` to the velocities and add them to the
+        // running totals, part by part.
         let apply = |buffer: usize| {
-            // SAFETY: in this pass the increments are only read, and each worker writes
-            // only its own velocities and totals; the barrier below ends the pass.
-            let (kappa, vel, sum) = unsafe {
-                (
-                    increments[buffer].read(),
-                    velocity.part_mut(my_items.clone()),
-                    total.part_mut(my_items.clone()),
-                )
-            };
-            let chunks = vel.chunks_mut(LANES).zip(sum.chunks_mut(LANES));
-            for (b, (v, t)) in my_blocks.clone().zip(chunks) {
-                nb.blocks
-                    .apply_block(b, volume, kappa, nb.grad_sum, v, Some(t));
+            // SAFETY: in this pass the increments are only read; each part's velocities and
+            // totals are written by the one worker that took the part; the barrier below
+            // ends the pass.
+            let kappa = unsafe { increments[buffer].read() };
+            for p in team.parts(my_parts.clone()) {
+                let part_blocks = blocks_of(p..p + 1);
+                let items = items_of(&part_blocks);
+                let (vel, sum) =
+                    unsafe { (velocity.part_mut(items.clone()), total.part_mut(items)) };
+                let chunks = vel.chunks_mut(LANES).zip(sum.chunks_mut(LANES));
+                for (b, (v, t)) in part_blocks.zip(chunks) {
+                    nb.blocks
+                        .apply_block(b, volume, kappa, nb.grad_sum, v, Some(t));
+                }
             }
             team.wait();
         };
@@ -457,11 +454,14 @@ fn jacobi_solve(
                 // into a point): an iteration that makes the error grow is taken back and
                 // the solve stops, rather than feeding the growth into the velocities.
                 let applied = 1 - current;
-                // SAFETY: each worker negates only its own items; the barrier orders it
-                // before the pass that reads them.
-                unsafe { increments[applied].part_mut(my_items.clone()) }
-                    .iter_mut()
-                    .for_each(|d| *d = -*d);
+                for p in team.parts(my_parts.clone()) {
+                    let items = items_of(&blocks_of(p..p + 1));
+                    // SAFETY: each part is negated by the worker that took it; the barrier
+                    // orders this before the pass that reads the increments.
+                    unsafe { increments[applied].part_mut(items) }
+                        .iter_mut()
+                        .for_each(|d| *d = -*d);
+                }
                 team.wait();
                 apply(applied);
                 // The velocities are back where the previous pass read them.
