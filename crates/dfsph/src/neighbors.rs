@@ -403,10 +403,13 @@ impl Grid {
                 // own points know their cell's key from the sort; other queries find their
                 // cell (an f64 floor per coordinate, about 4 % of a 100k step in all).
                 let r2 = self.radius * self.radius;
+                // Other queries' cells, 16 at a time on AVX-512.
+                let mut cells = [[0i64; 2]; 16];
                 let mut block_cell = [i64::MIN; 2];
                 let mut block_key = u32::MAX;
                 let mut block = [(0u32, 0u32); 3];
                 let mut block_len = 0;
+                let chunk_end = base + counts.len();
                 for (k, count) in counts.iter_mut().enumerate() {
                     let i = base + k;
                     let p = queries[i];
@@ -418,6 +421,18 @@ impl Grid {
                             block_len = self.dense_block(c, &mut block);
                         }
                     } else {
+                        #[cfg(target_arch = "x86_64")]
+                        let c = if avx512 {
+                            if k % 16 == 0 {
+                                let next = &queries[i..(i + 16).min(chunk_end)];
+                                // SAFETY: `avx512` is only set where the CPU has AVX-512F.
+                                unsafe { avx512::block_cells(self, next, &mut cells) };
+                            }
+                            cells[k % 16]
+                        } else {
+                            self.cell_of(p)
+                        };
+                        #[cfg(not(target_arch = "x86_64"))]
                         let c = self.cell_of(p);
                         if c != block_cell {
                             block_cell = c;
@@ -533,6 +548,70 @@ mod avx512 {
         }
         for (k, &p) in keys[i..n].iter_mut().zip(&points[i..n]) {
             *k = grid.point_key(p);
+        }
+    }
+
+    /// The cells of up to 16 `points` in a dense `grid`, for [`super::Grid::dense_block`]:
+    /// [`super::Grid::cell_of`]'s f64 operations and floor, with each coordinate then
+    /// clamped to `-2..=dims + 1` (a cell two or more outside the grid has an empty block,
+    /// as every cell further out does) and a NaN coordinate to 0, as `cell_of` gives it.
+    /// So every point gets the block `cell_of` would give it.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F; the grid must be dense.
+    #[target_feature(enable = "avx512f")]
+    pub(super) unsafe fn block_cells(
+        grid: &super::Grid,
+        points: &[Vec2],
+        cells: &mut [[i64; 2]; 16],
+    ) {
+        debug_assert!(!grid.hashed);
+        let n = points.len().min(16);
+        let xy = points.as_ptr() as *const f32;
+        let lo_mask: __mmask16 = if n >= 8 {
+            0xffff
+        } else {
+            ((1u32 << (2 * n)) - 1) as u16
+        };
+        let hi_mask: __mmask16 = if n > 8 {
+            ((1u32 << (2 * (n - 8))) - 1) as u16
+        } else {
+            0
+        };
+        // Masked lanes are not read; `wrapping_add` as the second half may start past the
+        // slice.
+        let (x, y) = deinterleave(
+            _mm512_maskz_loadu_ps(lo_mask, xy),
+            _mm512_maskz_loadu_ps(hi_mask, xy.wrapping_add(16)),
+        );
+        let inv = _mm512_set1_pd(grid.inv_cell as f64);
+        let below = _mm512_set1_pd(-2.0);
+        let zero = _mm512_setzero_pd();
+        let mut out = [[0i32; 16]; 2];
+        for (axis, (v, origin)) in [(x, grid.origin.x), (y, grid.origin.y)]
+            .into_iter()
+            .enumerate()
+        {
+            let origin = _mm512_set1_pd(origin as f64);
+            let above = _mm512_set1_pd((grid.dims[axis] + 1) as f64);
+            for half in 0..2 {
+                let v = _mm512_castps_pd(v);
+                let v = _mm256_castpd_ps(if half == 0 {
+                    _mm512_castpd512_pd256(v)
+                } else {
+                    _mm512_extractf64x4_pd::<1>(v)
+                });
+                let scaled = _mm512_mul_pd(_mm512_sub_pd(_mm512_cvtps_pd(v), origin), inv);
+                let floored =
+                    _mm512_roundscale_pd::<{ _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC }>(scaled);
+                let nan = _mm512_cmp_pd_mask::<_CMP_UNORD_Q>(floored, floored);
+                let clamped = _mm512_min_pd(_mm512_max_pd(floored, below), above);
+                let cell = _mm512_cvttpd_epi32(_mm512_mask_blend_pd(nan, clamped, zero));
+                _mm256_storeu_si256(out[axis].as_mut_ptr().add(8 * half) as *mut __m256i, cell);
+            }
+        }
+        for (l, c) in cells.iter_mut().enumerate().take(n) {
+            *c = [out[0][l] as i64, out[1][l] as i64];
         }
     }
 
@@ -781,6 +860,56 @@ mod tests {
         assert_eq!(simd, scalar);
         let cells: std::collections::HashSet<u32> = scalar.iter().copied().collect();
         assert!(cells.len() > 100, "{} cells", cells.len());
+    }
+
+    /// The AVX-512 cells of queries give the blocks `cell_of` gives: inside the grid, on its
+    /// edges, one and two cells out, far out, at infinities and NaN, and for fewer than 16
+    /// points.
+    #[test]
+    fn simd_query_cells_give_the_scalar_blocks() {
+        if !crate::blocked::simd_available() {
+            eprintln!("no AVX-512 on this CPU: nothing to compare");
+            return;
+        }
+        let r = 0.04f32;
+        let mut grid = Grid::new(r);
+        let pts: Vec<Vec2> = (0..400)
+            .map(|k| Vec2::new((k % 20) as f32 * 0.03, (k / 20) as f32 * 0.03))
+            .collect();
+        grid.build(&pts);
+        assert!(!grid.hashed);
+        let mut queries = Vec::new();
+        for i in -6..30 {
+            for j in -6..30 {
+                let p = Vec2::new(i as f32 * r * 0.5, j as f32 * r * 0.5);
+                queries.extend([p, p + Vec2::splat(1.0e-6), p - Vec2::splat(1.0e-6)]);
+            }
+        }
+        queries.extend([
+            Vec2::new(f32::NAN, 0.1),
+            Vec2::new(0.1, f32::NAN),
+            Vec2::new(f32::INFINITY, 0.1),
+            Vec2::new(0.1, f32::NEG_INFINITY),
+            Vec2::new(-1.0e30, 1.0e30),
+            Vec2::new(3.0e9, -3.0e9),
+        ]);
+        let blocks = |c: [i64; 2]| {
+            let mut block = [(0u32, 0u32); 3];
+            let len = grid.dense_block(c, &mut block);
+            block[..len].to_vec()
+        };
+        let mut non_empty = 0;
+        for group in queries.chunks(13).chain(queries.chunks(16)) {
+            let mut cells = [[0i64; 2]; 16];
+            // SAFETY: AVX-512F is present (checked above); the grid is dense.
+            unsafe { avx512::block_cells(&grid, group, &mut cells) };
+            for (&p, &c) in group.iter().zip(&cells) {
+                let want = blocks(grid.cell_of(p));
+                assert_eq!(blocks(c), want, "{p:?}");
+                non_empty += !want.is_empty() as usize;
+            }
+        }
+        assert!(non_empty > 1000, "{non_empty} queries with neighbours");
     }
 
     #[test]
