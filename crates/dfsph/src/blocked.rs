@@ -299,7 +299,7 @@ impl BlockedPairs {
     }
 
     /// Block `b`'s indices and gradients, slot by slot.
-    #[inline]
+    #[inline(always)]
     fn block(&self, b: usize) -> (Indices<'_>, &[f32], &[f32]) {
         let e = self.slot_start[b] as usize * LANES..self.slot_start[b + 1] as usize * LANES;
         let idx = if self.narrow {

@@ -38,7 +38,7 @@ pub struct NeighborLists {
 
 impl NeighborLists {
     /// The neighbours of point `i`.
-    #[inline]
+    #[inline(always)]
     pub fn of(&self, i: usize) -> &[u32] {
         let chunk = i / CHUNK;
         let first = self.offsets[chunk * CHUNK];
