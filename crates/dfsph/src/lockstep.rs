@@ -28,8 +28,7 @@ const SPINS_BEFORE_YIELD: u32 = 1 << 11;
 /// One worker's view of the region.
 pub struct Team<'a> {
     index: usize,
-    count: usize,
-    barrier: &'a Barrier,
+    region: &'a Region,
 }
 
 impl Team<'_> {
@@ -40,13 +39,13 @@ impl Team<'_> {
 
     /// Workers in the region.
     pub fn count(&self) -> usize {
-        self.count
+        self.region.count
     }
 
     /// Wait until every worker of the region has reached this call: what any worker wrote
     /// before it is visible to every worker after it.
     pub fn wait(&self) {
-        self.barrier.wait();
+        self.region.wait();
     }
 
     /// This worker's share of `0..items`, cut where `cost_before(k)` (non-decreasing, the
@@ -59,10 +58,10 @@ impl Team<'_> {
             if w == 0 {
                 return 0;
             }
-            if w == self.count {
+            if w == self.count() {
                 return items;
             }
-            let target = (total as u128 * w as u128 / self.count as u128) as u64;
+            let target = (total as u128 * w as u128 / self.count() as u128) as u64;
             // The first k whose cost reaches the target.
             let (mut lo, mut hi) = (0, items);
             while lo < hi {
@@ -86,7 +85,7 @@ impl Team<'_> {
     /// Every worker must call this once per pass and drain it before its next
     /// [`Team::wait`].
     pub fn parts(&self, share: Range<usize>) -> Parts<'_> {
-        let mine = &self.barrier.shares[self.index];
+        let mine = &self.region.shares[self.index];
         // Before this, every part of the last pass was taken (the barrier ended it), so no
         // worker can be taking from this share meanwhile.
         mine.store(pack(share.start, share.end), Ordering::Release);
@@ -111,7 +110,7 @@ impl Iterator for Parts<'_> {
         let team = self.team;
         loop {
             let own = self.victim == team.index;
-            let slot = &team.barrier.shares[self.victim];
+            let slot = &team.region.shares[self.victim];
             let mut state = slot.load(Ordering::Acquire);
             loop {
                 let (front, back) = unpack(state);
@@ -130,7 +129,7 @@ impl Iterator for Parts<'_> {
                 }
             }
             // This share is done: the next worker's, round to this one's own.
-            self.victim = (self.victim + 1) % team.count;
+            self.victim = (self.victim + 1) % team.count();
             if self.victim == team.index {
                 return None;
             }
@@ -153,30 +152,28 @@ fn unpack(state: u64) -> (usize, usize) {
 /// If one worker panics, the others panic at their next [`Team::wait`] rather than wait
 /// for it forever, and the panic reaches the caller.
 pub fn run<R: Send>(body: impl Fn(&Team) -> R + Sync) -> Vec<R> {
-    let count = rayon::current_num_threads();
-    let barrier = Barrier::new(count);
-    if count == 1 {
+    let region = Region::new(rayon::current_num_threads());
+    if region.count == 1 {
         return vec![body(&Team {
             index: 0,
-            count,
-            barrier: &barrier,
+            region: &region,
         })];
     }
     rayon::broadcast(|ctx| {
         let team = Team {
             index: ctx.index(),
-            count: ctx.num_threads(),
-            barrier: &barrier,
+            region: &region,
         };
-        let guard = PoisonOnUnwind(&barrier);
+        let guard = PoisonOnUnwind(&region);
         let result = body(&team);
         std::mem::forget(guard);
         result
     })
 }
 
-/// Counting barrier for the workers of one region.
-struct Barrier {
+/// What the workers of one region share: a counting barrier, and the parts of each
+/// worker's share not yet taken.
+struct Region {
     arrived: AtomicUsize,
     generation: AtomicUsize,
     count: usize,
@@ -198,7 +195,7 @@ impl std::ops::Deref for PaddedAtomic {
     }
 }
 
-impl Barrier {
+impl Region {
     fn new(count: usize) -> Self {
         Self {
             arrived: AtomicUsize::new(0),
@@ -240,8 +237,8 @@ impl Barrier {
     }
 }
 
-/// Marks the barrier poisoned if the worker holding it unwinds.
-struct PoisonOnUnwind<'a>(&'a Barrier);
+/// Marks the region poisoned if the worker holding it unwinds.
+struct PoisonOnUnwind<'a>(&'a Region);
 
 impl Drop for PoisonOnUnwind<'_> {
     fn drop(&mut self) {
@@ -374,15 +371,14 @@ mod tests {
 
     #[test]
     fn shares_follow_the_cost_and_cover_the_items() {
-        let barrier = Barrier::new(3);
+        let region = Region::new(3);
         // Items 0..10 cost 1 each, items 10..20 cost 9 each: 100 in all.
         let cost = |k: usize| (k.min(10) + 9 * k.saturating_sub(10)) as u64;
         let shares: Vec<_> = (0..3)
             .map(|index| {
                 Team {
                     index,
-                    count: 3,
-                    barrier: &barrier,
+                    region: &region,
                 }
                 .share(20, cost)
             })
@@ -391,8 +387,7 @@ mod tests {
         assert_eq!(shares, vec![0..13, 13..17, 17..20]);
         let empty = Team {
             index: 1,
-            count: 3,
-            barrier: &barrier,
+            region: &region,
         }
         .share(0, |_| 0);
         assert_eq!(empty, 0..0);

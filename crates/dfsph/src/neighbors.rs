@@ -401,7 +401,7 @@ impl Grid {
                 // Dense grid: queries arrive sorted by cell, so the ranges of the 3 x 3
                 // block are looked up once per run of queries in the same cell. The grid's
                 // own points know their cell's key from the sort; other queries find their
-                // cell (an f64 floor per coordinate, about 4 % of a 100k step in all).
+                // cells (an f64 floor per coordinate), 16 at a time where AVX-512 is.
                 let r2 = self.radius * self.radius;
                 // Other queries' cells, 16 at a time on AVX-512.
                 let mut cells = [[0i64; 2]; 16];
@@ -492,12 +492,32 @@ mod avx512 {
     use glam::Vec2;
     use std::arch::x86_64::*;
 
+    /// The cell coordinates along one axis of 16 points whose coordinates are `v`, floored
+    /// but not clamped, as two vectors of 8 (lanes 0–7, then 8–15): the operations of
+    /// [`super::Grid::cell_of`], `(v − origin)·inv` in f64 with no fused multiply-add, then
+    /// floor, so every value is the one `cell_of` floors to.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn floored_cells(v: __m512, origin: f32, inv: f32) -> [__m512d; 2] {
+        let (origin, inv) = (_mm512_set1_pd(origin as f64), _mm512_set1_pd(inv as f64));
+        let v = _mm512_castps_pd(v);
+        let halves = [_mm512_castpd512_pd256(v), _mm512_extractf64x4_pd::<1>(v)];
+        let mut floored = [_mm512_setzero_pd(); 2];
+        for (f, half) in floored.iter_mut().zip(halves) {
+            let scaled = _mm512_mul_pd(
+                _mm512_sub_pd(_mm512_cvtps_pd(_mm256_castpd_ps(half)), origin),
+                inv,
+            );
+            *f = _mm512_roundscale_pd::<{ _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC }>(scaled);
+        }
+        floored
+    }
+
     /// [`super::Grid::point_key`] of each of `points` into `keys`, 16 points per iteration,
-    /// for a dense grid: the same f64 operations (`(p − origin)·(1/edge)`, no fused
-    /// multiply-add), then floor and the clamp to the grid in f64, where the scalar path
-    /// converts to an integer first. Both give the same cell: the floored value is an
-    /// integer, and a NaN clamps to 0 either way (`max` returns its second operand for a
-    /// NaN, the scalar `as` gives 0). A tail of fewer than 16 points takes the scalar path.
+    /// for a dense grid: [`floored_cells`], then the clamp to the grid in f64, where the
+    /// scalar path converts to an integer first. Both give the same cell: the floored value
+    /// is an integer, and a NaN clamps to 0 either way (`max` returns its second operand for
+    /// a NaN, the scalar `as` gives 0). A tail of fewer than 16 points takes the scalar path.
     ///
     /// # Safety
     /// The CPU must have AVX-512F; the grid must be dense with at most `i32::MAX` cells.
@@ -506,41 +526,23 @@ mod avx512 {
         debug_assert!(!grid.hashed && grid.key_count <= i32::MAX as usize);
         let n = points.len().min(keys.len());
         let xy = points.as_ptr() as *const f32;
-        let inv = _mm512_set1_pd(grid.inv_cell as f64);
-        let (ox, oy) = (
-            _mm512_set1_pd(grid.origin.x as f64),
-            _mm512_set1_pd(grid.origin.y as f64),
-        );
         let zero = _mm512_setzero_pd();
-        let (last_x, last_y) = (
-            _mm512_set1_pd((grid.dims[0] - 1) as f64),
-            _mm512_set1_pd((grid.dims[1] - 1) as f64),
-        );
+        let last = |axis: usize| _mm512_set1_pd((grid.dims[axis] - 1) as f64);
+        let (last_x, last_y) = (last(0), last(1));
         let row = _mm256_set1_epi32(grid.dims[0] as i32);
-        // One coordinate of 8 points to its clamped cell index.
-        let cell = |v: __m256, origin: __m512d, last: __m512d| -> __m256i {
-            let scaled = _mm512_mul_pd(_mm512_sub_pd(_mm512_cvtps_pd(v), origin), inv);
-            let floored =
-                _mm512_roundscale_pd::<{ _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC }>(scaled);
-            _mm512_cvttpd_epi32(_mm512_min_pd(_mm512_max_pd(floored, zero), last))
-        };
         let mut i = 0;
         while i + 16 <= n {
             let (x, y) = deinterleave(
                 _mm512_loadu_ps(xy.add(2 * i)),
                 _mm512_loadu_ps(xy.add(2 * i + 16)),
             );
+            let cx = floored_cells(x, grid.origin.x, grid.inv_cell);
+            let cy = floored_cells(y, grid.origin.y, grid.inv_cell);
             for half in 0..2 {
-                let pick = |v: __m512| -> __m256 {
-                    let v = _mm512_castps_pd(v);
-                    _mm256_castpd_ps(if half == 0 {
-                        _mm512_castpd512_pd256(v)
-                    } else {
-                        _mm512_extractf64x4_pd::<1>(v)
-                    })
+                let clamp = |v: __m512d, last: __m512d| {
+                    _mm512_cvttpd_epi32(_mm512_min_pd(_mm512_max_pd(v, zero), last))
                 };
-                let cx = cell(pick(x), ox, last_x);
-                let cy = cell(pick(y), oy, last_y);
+                let (cx, cy) = (clamp(cx[half], last_x), clamp(cy[half], last_y));
                 let key = _mm256_add_epi32(_mm256_mullo_epi32(cy, row), cx);
                 _mm256_storeu_si256(keys.as_mut_ptr().add(i + 8 * half) as *mut __m256i, key);
             }
@@ -552,10 +554,10 @@ mod avx512 {
     }
 
     /// The cells of up to 16 `points` in a dense `grid`, for [`super::Grid::dense_block`]:
-    /// [`super::Grid::cell_of`]'s f64 operations and floor, with each coordinate then
-    /// clamped to `-2..=dims + 1` (a cell two or more outside the grid has an empty block,
-    /// as every cell further out does) and a NaN coordinate to 0, as `cell_of` gives it.
-    /// So every point gets the block `cell_of` would give it.
+    /// [`floored_cells`], with each coordinate then clamped to `-2..=dims + 1` (a cell two or
+    /// more outside the grid has an empty block, as every cell further out does) and a NaN
+    /// coordinate to 0, as `cell_of` gives it. So every point gets the block `cell_of` would
+    /// give it.
     ///
     /// # Safety
     /// The CPU must have AVX-512F; the grid must be dense.
@@ -584,26 +586,13 @@ mod avx512 {
             _mm512_maskz_loadu_ps(lo_mask, xy),
             _mm512_maskz_loadu_ps(hi_mask, xy.wrapping_add(16)),
         );
-        let inv = _mm512_set1_pd(grid.inv_cell as f64);
         let below = _mm512_set1_pd(-2.0);
         let zero = _mm512_setzero_pd();
         let mut out = [[0i32; 16]; 2];
-        for (axis, (v, origin)) in [(x, grid.origin.x), (y, grid.origin.y)]
-            .into_iter()
-            .enumerate()
-        {
-            let origin = _mm512_set1_pd(origin as f64);
+        for (axis, v) in [x, y].into_iter().enumerate() {
             let above = _mm512_set1_pd((grid.dims[axis] + 1) as f64);
-            for half in 0..2 {
-                let v = _mm512_castps_pd(v);
-                let v = _mm256_castpd_ps(if half == 0 {
-                    _mm512_castpd512_pd256(v)
-                } else {
-                    _mm512_extractf64x4_pd::<1>(v)
-                });
-                let scaled = _mm512_mul_pd(_mm512_sub_pd(_mm512_cvtps_pd(v), origin), inv);
-                let floored =
-                    _mm512_roundscale_pd::<{ _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC }>(scaled);
+            let floored = floored_cells(v, grid.origin[axis], grid.inv_cell);
+            for (half, floored) in floored.into_iter().enumerate() {
                 let nan = _mm512_cmp_pd_mask::<_CMP_UNORD_Q>(floored, floored);
                 let clamped = _mm512_min_pd(_mm512_max_pd(floored, below), above);
                 let cell = _mm512_cvttpd_epi32(_mm512_mask_blend_pd(nan, clamped, zero));
@@ -823,17 +812,25 @@ mod tests {
         check(pts, r);
     }
 
+    /// A dense grid of `points` to compare the AVX-512 cell passes with the scalar ones, or
+    /// `None` (said on stderr) where this CPU has no AVX-512.
+    fn dense_grid_for_simd(radius: f32, points: &[Vec2]) -> Option<Grid> {
+        if !crate::blocked::simd_available() {
+            eprintln!("no AVX-512 on this CPU: nothing to compare");
+            return None;
+        }
+        let mut grid = Grid::new(radius);
+        grid.build(points);
+        assert!(!grid.hashed);
+        Some(grid)
+    }
+
     /// The AVX-512 key pass gives each point the scalar key, and so the same sort: on cell
     /// edges (a lattice at half the cell edge, with points a hair either side), past the
     /// grid's edges, at infinities and NaN, and in a tail shorter than 16.
     #[test]
     fn simd_keys_are_the_scalar_keys() {
-        if !crate::blocked::simd_available() {
-            eprintln!("no AVX-512 on this CPU: nothing to compare");
-            return;
-        }
         let r = 0.04f32;
-        let mut grid = Grid::new(r);
         let mut pts = Vec::new();
         for i in 0..40 {
             for j in 0..25 {
@@ -841,8 +838,9 @@ mod tests {
                 pts.extend([p, p + Vec2::splat(1.0e-7), p - Vec2::splat(1.0e-7)]);
             }
         }
-        grid.build(&pts);
-        assert!(!grid.hashed);
+        let Some(grid) = dense_grid_for_simd(r, &pts) else {
+            return;
+        };
         let extremes = [
             Vec2::new(f32::NAN, 0.5),
             Vec2::new(0.5, f32::NAN),
@@ -867,17 +865,13 @@ mod tests {
     /// points.
     #[test]
     fn simd_query_cells_give_the_scalar_blocks() {
-        if !crate::blocked::simd_available() {
-            eprintln!("no AVX-512 on this CPU: nothing to compare");
-            return;
-        }
         let r = 0.04f32;
-        let mut grid = Grid::new(r);
         let pts: Vec<Vec2> = (0..400)
             .map(|k| Vec2::new((k % 20) as f32 * 0.03, (k / 20) as f32 * 0.03))
             .collect();
-        grid.build(&pts);
-        assert!(!grid.hashed);
+        let Some(grid) = dense_grid_for_simd(r, &pts) else {
+            return;
+        };
         let mut queries = Vec::new();
         for i in -6..30 {
             for j in -6..30 {

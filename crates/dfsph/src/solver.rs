@@ -356,12 +356,12 @@ fn jacobi_solve(
         Shared::new(&mut scratch.rate),
         Shared::new(&mut scratch.previous_rate),
     ];
-    let blocks_of = |parts: Range<usize>| {
-        (parts.start * blocks_per_part).min(blocks)..(parts.end * blocks_per_part).min(blocks)
+    // Part `p`'s blocks and particles.
+    let part = |p: usize| -> (Range<usize>, Range<usize>) {
+        let part_blocks = p * blocks_per_part..((p + 1) * blocks_per_part).min(blocks);
+        let items = part_blocks.start * LANES..(part_blocks.end * LANES).min(n);
+        (part_blocks, items)
     };
-    // Empty shares (more workers than parts) end up as empty ranges at the end.
-    let items_of =
-        |blocks: &Range<usize>| (blocks.start * LANES).min(n)..(blocks.end * LANES).min(n);
 
     let outcomes = lockstep::run(|team| {
         // Shares cut at part bounds, balanced by neighbour slots.
@@ -379,8 +379,7 @@ fn jacobi_solve(
             // pass.
             let vel = unsafe { velocity.read() };
             for p in team.parts(my_parts.clone()) {
-                let part_blocks = blocks_of(p..p + 1);
-                let items = items_of(&part_blocks);
+                let (part_blocks, items) = part(p);
                 let (d, r, sum) = unsafe {
                     (
                         increments[buffer].part_mut(items.clone()),
@@ -421,8 +420,7 @@ fn jacobi_solve(
             // ends the pass.
             let kappa = unsafe { increments[buffer].read() };
             for p in team.parts(my_parts.clone()) {
-                let part_blocks = blocks_of(p..p + 1);
-                let items = items_of(&part_blocks);
+                let (part_blocks, items) = part(p);
                 let (vel, sum) =
                     unsafe { (velocity.part_mut(items.clone()), total.part_mut(items)) };
                 let chunks = vel.chunks_mut(LANES).zip(sum.chunks_mut(LANES));
@@ -455,7 +453,7 @@ fn jacobi_solve(
                 // the solve stops, rather than feeding the growth into the velocities.
                 let applied = 1 - current;
                 for p in team.parts(my_parts.clone()) {
-                    let items = items_of(&blocks_of(p..p + 1));
+                    let (_, items) = part(p);
                     // SAFETY: each part is negated by the worker that took it; the barrier
                     // orders this before the pass that reads the increments.
                     unsafe { increments[applied].part_mut(items) }
