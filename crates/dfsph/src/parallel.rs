@@ -1,14 +1,238 @@
-//! How finely the step's passes are cut into rayon tasks.
+//! How the step's passes are handed to rayon's workers.
 //!
 //! A pass that rayon splits between two workers pays for the hand-over: the second worker
-//! has to notice the task, steal it, and signal its end. On the 2-core virtual machine of
-//! docs/PERFORMANCE.md that costs 5–8 µs per pass, where scaling 5,000 floats in place
-//! takes 0.5 µs on one thread. A step runs some fifty passes; about twenty of them do a
-//! few operations per particle (scale an array, advect, reorder, take a maximum), and at a
-//! few thousand particles splitting them makes each slower than not splitting it.
+//! has to notice the task, steal it, and signal its end. A worker that found nothing to do
+//! goes to sleep after a few dozen polls, and waking it takes a system call and, on the
+//! 2-core virtual machine of docs/PERFORMANCE.md, 10–50 µs before it runs; a step runs some
+//! fifty passes, separated by serial stretches long enough for the second worker to fall
+//! asleep in between. [`with_workers_at_hand`] keeps the other workers polling for the
+//! whole step instead, so a hand-over is a steal by a worker that is already looking; then
+//! even the light passes (a few operations per item: scale an array, advect, reorder, take
+//! a maximum) pay for splitting at a few thousand items.
+
+use std::cell::Cell;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Mutex;
 
 /// Fewest items a task of a light pass (a few arithmetic operations, or one copy, per
 /// item) is given: such a pass over fewer items than this runs on one worker. At about
-/// 0.2 ns per item this is some 6 µs of work, about what handing a task to another worker
-/// costs.
-pub const LIGHT_PASS_MIN_ITEMS: usize = 32 * 1024;
+/// 0.2–1 ns per item this is 0.5–2 µs of work, about what handing a task to a polling
+/// worker costs. (Measured at 5,000 particles on two workers, in one process, steps
+/// alternating in blocks of 8: 2,048 took 4.5 % less time than 32,768, which runs every
+/// light pass there on one worker; 512 took 3 % less.)
+pub const LIGHT_PASS_MIN_ITEMS: usize = 2 * 1024;
+
+/// Polls of the pool that find nothing before a worker at hand starts giving its core away
+/// between polls (a few hundred µs): the serial stretches of a step are tens of µs, but a
+/// pool with more workers than cores must not have them spin through the time slices of
+/// the worker that runs the step.
+const IDLE_POLLS_BEFORE_YIELD: u32 = 1 << 12;
+
+thread_local! {
+    /// Set while this thread runs [`with_workers_at_hand`]'s work or stands by for one.
+    static AT_HAND_BUSY: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Run `work` on a worker of rayon's pool while every other worker of the pool stays at
+/// hand: instead of going to sleep when it runs out of tasks, each polls the pool for them
+/// (and runs them) until `work` returns. Called from inside a pool, or with a pool of one
+/// worker, this just runs `work`.
+pub fn with_workers_at_hand<R: Send>(work: impl FnOnce() -> R + Send) -> R {
+    if rayon::current_thread_index().is_some() || rayon::current_num_threads() == 1 {
+        return work();
+    }
+    run_at_hand(|op| drop(rayon::broadcast(op)), work, &AtomicUsize::new(0))
+}
+
+/// [`with_workers_at_hand`] on the pool of `broadcast` (which runs its argument once on
+/// every worker of a pool, called from outside it), counting the workers standing by in
+/// `standing_by`.
+///
+/// The workers stand by as the outermost job they run: worker 0 starts `work` only once
+/// every other worker has entered its part of the broadcast, before `work` has made a task
+/// another could take first. (A worker that stood by inside a task it had taken would
+/// hold that task's result until `work` ended, and `work` may be waiting for it.) A worker
+/// already running such work or standing by for another call does not stand by again, so
+/// two calls from different threads cannot hold each other's workers.
+fn run_at_hand<R: Send>(
+    broadcast: impl FnOnce(&(dyn Fn(rayon::BroadcastContext<'_>) + Sync)),
+    work: impl FnOnce() -> R + Send,
+    standing_by: &AtomicUsize,
+) -> R {
+    let work = Mutex::new(Some(work));
+    let out = Mutex::new(None);
+    let arrived = AtomicUsize::new(0);
+    let done = AtomicBool::new(false);
+    broadcast(&|ctx| {
+        if ctx.index() == 0 {
+            wait_until(|| arrived.load(Ordering::Acquire) + 1 == ctx.num_threads());
+            // Ends the standing by also when `work` panics (the broadcast then passes the
+            // panic on once every worker has returned).
+            let _end = EndOnDrop {
+                done: &done,
+                was_busy: AT_HAND_BUSY.replace(true),
+            };
+            let work = work
+                .lock()
+                .unwrap()
+                .take()
+                .expect("worker 0 runs the work once");
+            *out.lock().unwrap() = Some(work());
+        } else if AT_HAND_BUSY.replace(true) {
+            arrived.fetch_add(1, Ordering::AcqRel);
+        } else {
+            standing_by.fetch_add(1, Ordering::AcqRel);
+            arrived.fetch_add(1, Ordering::AcqRel);
+            wait_until(|| done.load(Ordering::Acquire));
+            standing_by.fetch_sub(1, Ordering::AcqRel);
+            AT_HAND_BUSY.set(false);
+        }
+    });
+    let out = out.into_inner().unwrap();
+    out.expect("worker 0 ran the work")
+}
+
+/// Poll the pool for tasks, running them, until `ready()`.
+fn wait_until(ready: impl Fn() -> bool) {
+    let mut idle = 0u32;
+    while !ready() {
+        if rayon::yield_now() == Some(rayon::Yield::Executed) {
+            idle = 0;
+        } else if idle < IDLE_POLLS_BEFORE_YIELD {
+            idle += 1;
+            std::hint::spin_loop();
+        } else {
+            std::thread::yield_now();
+        }
+    }
+}
+
+/// Ends a [`run_at_hand`] call on the worker that ran its work, returned or unwinding.
+struct EndOnDrop<'a> {
+    done: &'a AtomicBool,
+    was_busy: bool,
+}
+
+impl Drop for EndOnDrop<'_> {
+    fn drop(&mut self) {
+        AT_HAND_BUSY.set(self.was_busy);
+        self.done.store(true, Ordering::Release);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rayon::prelude::*;
+    use std::time::{Duration, Instant};
+
+    fn pool(threads: usize) -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+    }
+
+    /// [`run_at_hand`] on `pool`, from this thread (outside the pool, as `Simulation::step`
+    /// calls it).
+    fn at_hand_on<R: Send>(
+        pool: &rayon::ThreadPool,
+        standing_by: &AtomicUsize,
+        work: impl FnOnce() -> R + Send,
+    ) -> R {
+        run_at_hand(|op| drop(pool.broadcast(op)), work, standing_by)
+    }
+
+    /// Within `work`: wait (up to 10 s) until `count` workers stand by, and return how many
+    /// did at most.
+    fn most_standing_by(standing_by: &AtomicUsize, count: usize) -> usize {
+        let start = Instant::now();
+        let mut most = 0;
+        while start.elapsed() < Duration::from_secs(10) && most < count {
+            most = most.max(standing_by.load(Ordering::Acquire));
+            std::hint::spin_loop();
+        }
+        most
+    }
+
+    #[test]
+    fn the_work_runs_its_passes_and_returns_their_result() {
+        let sum = at_hand_on(&pool(2), &AtomicUsize::new(0), || {
+            (0..50u64)
+                .map(|pass| {
+                    (0..10_000u32)
+                        .into_par_iter()
+                        .with_min_len(LIGHT_PASS_MIN_ITEMS)
+                        .map(|i| i as u64 * pass)
+                        .sum::<u64>()
+                })
+                .sum::<u64>()
+        });
+        assert_eq!(sum, (0..50u64).sum::<u64>() * (0..10_000u64).sum::<u64>());
+    }
+
+    #[test]
+    fn the_other_workers_stand_by_while_the_work_runs() {
+        let standing_by = AtomicUsize::new(0);
+        let most = at_hand_on(&pool(3), &standing_by, || most_standing_by(&standing_by, 2));
+        assert_eq!(most, 2, "both other workers of a 3-worker pool stand by");
+        assert_eq!(
+            standing_by.load(Ordering::Acquire),
+            0,
+            "and stop when it ends"
+        );
+    }
+
+    #[test]
+    fn two_threads_running_work_on_one_pool_both_finish() {
+        let pool = pool(2);
+        let results: Vec<u64> = std::thread::scope(|s| {
+            let handles: Vec<_> = (0..2u32)
+                .map(|t| {
+                    let pool = &pool;
+                    s.spawn(move || {
+                        let mut total = 0;
+                        for _ in 0..200 {
+                            total += at_hand_on(pool, &AtomicUsize::new(0), || {
+                                (0..5_000u32)
+                                    .into_par_iter()
+                                    .with_min_len(64)
+                                    .map(|i| (i + t) as u64)
+                                    .sum::<u64>()
+                            });
+                        }
+                        total
+                    })
+                })
+                .collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        let once = (0..5_000u64).sum::<u64>();
+        assert_eq!(results, vec![200 * once, 200 * (once + 5_000)]);
+    }
+
+    #[test]
+    fn a_panic_in_the_work_ends_the_standing_by_and_reaches_the_caller() {
+        let pool = pool(2);
+        let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            at_hand_on(&pool, &AtomicUsize::new(0), || panic!("in the work"))
+        }));
+        assert!(caught.is_err());
+        // Both workers are free again, and the one whose work panicked runs the next.
+        let standing_by = AtomicUsize::new(0);
+        let most = at_hand_on(&pool, &standing_by, || most_standing_by(&standing_by, 1));
+        assert_eq!(most, 1);
+    }
+
+    #[test]
+    fn inside_a_pool_the_work_just_runs_on_the_calling_worker() {
+        // Each worker of a pool calls it at once: each runs its own work, on itself.
+        let ran_on = pool(2).broadcast(|ctx| {
+            (
+                ctx.index(),
+                with_workers_at_hand(rayon::current_thread_index),
+            )
+        });
+        assert_eq!(ran_on, vec![(0, Some(0)), (1, Some(1))]);
+    }
+}

@@ -1,7 +1,7 @@
 //! The simulation: owns the particle state, runs one DFSPH (or WCSPH) step at a time with CFL
 //! time stepping, and reports diagnostics for every step.
 
-use crate::parallel::LIGHT_PASS_MIN_ITEMS;
+use crate::parallel::{self, LIGHT_PASS_MIN_ITEMS};
 use glam::Vec2;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -290,10 +290,13 @@ impl Simulation {
     /// step). Otherwise every one of the step's parallel passes, some fifty, would be handed
     /// to the pool from this thread, which then sleeps until the pass ends: a futex wait and
     /// wake per pass, which on a 2-core virtual machine took half the wall time of a
-    /// 5,000-particle dam break.
+    /// 5,000-particle dam break. The pool's other workers stand by for the whole step
+    /// ([`parallel::with_workers_at_hand`]) rather than falling asleep between passes.
     pub fn step(&mut self) -> &StepStats {
         if rayon::current_thread_index().is_some() {
             self.advance();
+        } else if rayon::current_num_threads() > 1 {
+            parallel::with_workers_at_hand(|| self.advance());
         } else {
             rayon::scope(|_| self.advance());
         }
