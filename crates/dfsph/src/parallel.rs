@@ -13,6 +13,7 @@
 use std::cell::Cell;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 /// Fewest items a task of a light pass (a few arithmetic operations, or one copy, per
 /// item) is given: such a pass over fewer items than this runs on one worker. At about
@@ -28,6 +29,24 @@ pub const LIGHT_PASS_MIN_ITEMS: usize = 2 * 1024;
 /// the worker that runs the step.
 const IDLE_POLLS_BEFORE_YIELD: u32 = 1 << 12;
 
+/// How long the worker that runs the work waits for the others to join
+/// [`with_workers_at_hand`] before it starts without those still missing. A worker that is
+/// polling for tasks joins within a microsecond or two; one that has gone to sleep takes
+/// 10–50 µs to wake on the virtual machine of docs/PERFORMANCE.md, longer than it would
+/// save in a step with a serial stretch in between (the validation runs, which measure
+/// the front between steps: 6–9 % slower with a wait for every worker).
+const JOIN_WINDOW: Duration = Duration::from_micros(5);
+
+/// How long after a step ends the pool's idle workers are taken to be still polling for
+/// tasks (rayon puts them to sleep after a few dozen rounds of polls and yields): a
+/// [`with_workers_at_hand`] call that comes within this of the last one finds them awake
+/// to join. One that comes later finds them asleep, and waking them to stand by costs more
+/// than it saves: in the validation runs, which measure the front between steps (gaps of
+/// hundreds of µs; under 200 µs in 352 of 14,790 steps), steps took 3 % longer standing
+/// by than not. `dfsph2d run` writes a line of statistics between steps: within 20 µs in
+/// 129–188 of 207 steps of the 100k column, within 60 µs in 202.
+pub const WORKERS_STILL_POLLING: Duration = Duration::from_micros(50);
+
 thread_local! {
     /// Set while this thread runs [`with_workers_at_hand`]'s work or stands by for one.
     static AT_HAND_BUSY: Cell<bool> = const { Cell::new(false) };
@@ -41,31 +60,47 @@ pub fn with_workers_at_hand<R: Send>(work: impl FnOnce() -> R + Send) -> R {
     if rayon::current_thread_index().is_some() || rayon::current_num_threads() == 1 {
         return work();
     }
-    run_at_hand(|op| drop(rayon::broadcast(op)), work, &AtomicUsize::new(0))
+    run_at_hand(
+        |op| drop(rayon::broadcast(op)),
+        work,
+        JOIN_WINDOW,
+        &AtomicUsize::new(0),
+    )
 }
 
 /// [`with_workers_at_hand`] on the pool of `broadcast` (which runs its argument once on
 /// every worker of a pool, called from outside it), counting the workers standing by in
 /// `standing_by`.
 ///
-/// The workers stand by as the outermost job they run: worker 0 starts `work` only once
-/// every other worker has entered its part of the broadcast, before `work` has made a task
-/// another could take first. (A worker that stood by inside a task it had taken would
-/// hold that task's result until `work` ended, and `work` may be waiting for it.) A worker
-/// already running such work or standing by for another call does not stand by again, so
-/// two calls from different threads cannot hold each other's workers.
+/// A worker stands by only if it joins before `work` starts: worker 0 waits up to
+/// `join_window` for the others, then closes the door and starts. (A worker that joined
+/// later might be inside a task of `work` it had taken meanwhile, and standing by there
+/// would hold that task's result until `work` ended, while `work` waits for it.) A worker
+/// asleep when the call came wakes too late and leaves this call's passes to rayon's usual
+/// waking, as without this function. A worker already running such work or standing by
+/// for another call does not stand by again, so two calls from different threads cannot
+/// hold each other's workers.
 fn run_at_hand<R: Send>(
     broadcast: impl FnOnce(&(dyn Fn(rayon::BroadcastContext<'_>) + Sync)),
     work: impl FnOnce() -> R + Send,
+    join_window: Duration,
     standing_by: &AtomicUsize,
 ) -> R {
+    /// Set in `door` once worker 0 has started the work; the bits below count the workers
+    /// that joined before.
+    const CLOSED: usize = 1 << (usize::BITS - 1);
     let work = Mutex::new(Some(work));
     let out = Mutex::new(None);
-    let arrived = AtomicUsize::new(0);
+    let door = AtomicUsize::new(0);
     let done = AtomicBool::new(false);
     broadcast(&|ctx| {
         if ctx.index() == 0 {
-            wait_until(|| arrived.load(Ordering::Acquire) + 1 == ctx.num_threads());
+            let others = ctx.num_threads() - 1;
+            let opened = Instant::now();
+            while door.load(Ordering::Acquire) < others && opened.elapsed() < join_window {
+                std::hint::spin_loop();
+            }
+            door.fetch_or(CLOSED, Ordering::AcqRel);
             // Ends the standing by also when `work` panics (the broadcast then passes the
             // panic on once every worker has returned).
             let _end = EndOnDrop {
@@ -78,13 +113,17 @@ fn run_at_hand<R: Send>(
                 .take()
                 .expect("worker 0 runs the work once");
             *out.lock().unwrap() = Some(work());
-        } else if AT_HAND_BUSY.replace(true) {
-            arrived.fetch_add(1, Ordering::AcqRel);
-        } else {
-            standing_by.fetch_add(1, Ordering::AcqRel);
-            arrived.fetch_add(1, Ordering::AcqRel);
-            wait_until(|| done.load(Ordering::Acquire));
-            standing_by.fetch_sub(1, Ordering::AcqRel);
+        } else if !AT_HAND_BUSY.replace(true) {
+            let joined = door
+                .fetch_update(Ordering::AcqRel, Ordering::Acquire, |d| {
+                    (d & CLOSED == 0).then_some(d + 1)
+                })
+                .is_ok();
+            if joined {
+                standing_by.fetch_add(1, Ordering::AcqRel);
+                wait_until(|| done.load(Ordering::Acquire));
+                standing_by.fetch_sub(1, Ordering::AcqRel);
+            }
             AT_HAND_BUSY.set(false);
         }
     });
@@ -135,12 +174,14 @@ mod tests {
 
     /// [`run_at_hand`] on `pool`, from this thread (outside the pool, as `Simulation::step`
     /// calls it).
+    /// With a join window long enough for every idle worker of a test machine to join.
     fn at_hand_on<R: Send>(
         pool: &rayon::ThreadPool,
         standing_by: &AtomicUsize,
         work: impl FnOnce() -> R + Send,
     ) -> R {
-        run_at_hand(|op| drop(pool.broadcast(op)), work, standing_by)
+        let window = Duration::from_secs(10);
+        run_at_hand(|op| drop(pool.broadcast(op)), work, window, standing_by)
     }
 
     /// Within `work`: wait (up to 10 s) until `count` workers stand by, and return how many
@@ -184,6 +225,39 @@ mod tests {
     }
 
     #[test]
+    fn a_worker_that_joins_after_the_work_started_does_not_stand_by() {
+        let pool = pool(2);
+        // Worker 1 is held in a task until the work has started.
+        let release = AtomicBool::new(false);
+        let release = &release;
+        pool.in_place_scope(|s| {
+            s.spawn_broadcast(|_, ctx| {
+                if ctx.index() == 1 {
+                    while !release.load(Ordering::Acquire) {
+                        std::thread::yield_now();
+                    }
+                }
+            });
+            let standing_by = AtomicUsize::new(0);
+            let most = run_at_hand(
+                |op| drop(pool.broadcast(op)),
+                || {
+                    release.store(true, Ordering::Release);
+                    let start = Instant::now();
+                    let mut most = 0;
+                    while start.elapsed() < Duration::from_millis(300) {
+                        most = most.max(standing_by.load(Ordering::Acquire));
+                    }
+                    most
+                },
+                Duration::from_millis(1),
+                &standing_by,
+            );
+            assert_eq!(most, 0);
+        });
+    }
+
+    #[test]
     fn two_threads_running_work_on_one_pool_both_finish() {
         let pool = pool(2);
         let results: Vec<u64> = std::thread::scope(|s| {
@@ -193,13 +267,20 @@ mod tests {
                     s.spawn(move || {
                         let mut total = 0;
                         for _ in 0..200 {
-                            total += at_hand_on(pool, &AtomicUsize::new(0), || {
-                                (0..5_000u32)
-                                    .into_par_iter()
-                                    .with_min_len(64)
-                                    .map(|i| (i + t) as u64)
-                                    .sum::<u64>()
-                            });
+                            // Each call's worker 0 may wait for a worker standing by
+                            // for the other call: the window bounds that wait.
+                            total += run_at_hand(
+                                |op| drop(pool.broadcast(op)),
+                                || {
+                                    (0..5_000u32)
+                                        .into_par_iter()
+                                        .with_min_len(64)
+                                        .map(|i| (i + t) as u64)
+                                        .sum::<u64>()
+                                },
+                                JOIN_WINDOW,
+                                &AtomicUsize::new(0),
+                            );
                         }
                         total
                     })

@@ -5,6 +5,7 @@ use crate::parallel::{self, LIGHT_PASS_MIN_ITEMS};
 use glam::Vec2;
 use rayon::prelude::*;
 use serde::Serialize;
+use std::time::Instant;
 
 use crate::boundary::{self, Body, BodyId, BoundarySamples};
 use crate::forces::{self, PointerForce, Viscosity};
@@ -104,6 +105,8 @@ pub struct Simulation {
     pub(crate) pointer: Option<PointerForce>,
     /// Shaking: −1 (left) … 1 (right), held until changed.
     pub(crate) shake_drive: f32,
+    /// When the last [`Self::step`] returned.
+    last_step_end: Option<Instant>,
 }
 
 /// Particle data in creation order, for output.
@@ -158,6 +161,7 @@ impl Simulation {
             total_clamped: 0,
             total_non_finite: 0,
             pointer: None,
+            last_step_end: None,
             shake_drive: 0.0,
         };
         let mut samples = BoundarySamples::default();
@@ -290,16 +294,21 @@ impl Simulation {
     /// step). Otherwise every one of the step's parallel passes, some fifty, would be handed
     /// to the pool from this thread, which then sleeps until the pass ends: a futex wait and
     /// wake per pass, which on a 2-core virtual machine took half the wall time of a
-    /// 5,000-particle dam break. The pool's other workers stand by for the whole step
+    /// 5,000-particle dam break. When steps follow each other closely (a batch run, the
+    /// viewer's steps within a frame), the pool's other workers stand by for the whole step
     /// ([`parallel::with_workers_at_hand`]) rather than falling asleep between passes.
     pub fn step(&mut self) -> &StepStats {
+        let back_to_back = self
+            .last_step_end
+            .is_some_and(|end| end.elapsed() < parallel::WORKERS_STILL_POLLING);
         if rayon::current_thread_index().is_some() {
             self.advance();
-        } else if rayon::current_num_threads() > 1 {
+        } else if back_to_back && rayon::current_num_threads() > 1 {
             parallel::with_workers_at_hand(|| self.advance());
         } else {
             rayon::scope(|_| self.advance());
         }
+        self.last_step_end = Some(Instant::now());
         &self.stats
     }
 
