@@ -297,13 +297,7 @@ impl<'a, T> Shared<'a, T> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn pool(threads: usize) -> rayon::ThreadPool {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-    }
+    use crate::parallel::test_pool as pool;
 
     /// Every worker reads the whole array each round, after all wrote their parts: a
     /// missing barrier, or shares that overlap or leave gaps, give another sum.

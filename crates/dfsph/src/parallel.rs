@@ -159,18 +159,22 @@ impl Drop for EndOnDrop<'_> {
     }
 }
 
+/// A pool of `threads` workers, for tests.
+#[cfg(test)]
+pub(crate) fn test_pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use rayon::prelude::*;
     use std::time::{Duration, Instant};
 
-    fn pool(threads: usize) -> rayon::ThreadPool {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-    }
+    use super::test_pool as pool;
 
     /// [`run_at_hand`] on `pool`, from this thread (outside the pool, as `Simulation::step`
     /// calls it).
