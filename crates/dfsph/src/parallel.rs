@@ -42,7 +42,7 @@ const JOIN_WINDOW: Duration = Duration::from_micros(5);
 /// [`with_workers_at_hand`] call that comes within this of the last one finds them awake
 /// to join. One that comes later finds them asleep, and waking them to stand by costs more
 /// than it saves: in the validation runs, which measure the front between steps (gaps of
-/// hundreds of µs; under 200 µs in 352 of 14,790 steps), steps took 3 % longer standing
+/// hundreds of µs; under 200 µs in 352 of 14,790 steps), steps took 2–3 % longer standing
 /// by than not. `dfsph2d run` writes a line of statistics between steps: within 20 µs in
 /// 129–188 of 207 steps of the 100k column, within 60 µs in 202.
 pub const WORKERS_STILL_POLLING: Duration = Duration::from_micros(50);
@@ -52,10 +52,11 @@ thread_local! {
     static AT_HAND_BUSY: Cell<bool> = const { Cell::new(false) };
 }
 
-/// Run `work` on a worker of rayon's pool while every other worker of the pool stays at
-/// hand: instead of going to sleep when it runs out of tasks, each polls the pool for them
-/// (and runs them) until `work` returns. Called from inside a pool, or with a pool of one
-/// worker, this just runs `work`.
+/// Run `work` on a worker of rayon's pool while the pool's other workers stay at hand:
+/// instead of going to sleep when it runs out of tasks, each that joins within
+/// [`JOIN_WINDOW`] polls the pool for tasks (and runs them) until `work` returns. Called
+/// from inside a pool, or with a pool of one worker, this just runs `work` on the calling
+/// thread.
 pub fn with_workers_at_hand<R: Send>(work: impl FnOnce() -> R + Send) -> R {
     if rayon::current_thread_index().is_some() || rayon::current_num_threads() == 1 {
         return work();
