@@ -251,9 +251,10 @@ pub struct Row {
     pub cpu: String,
     /// SIMD features the binary was compiled for (`-C target-cpu`), e.g. `sse2` or `avx2`.
     pub compiled_simd: String,
-    /// What the solver's pair loops run on this CPU: `avx512f-gathers` or `avx512f-loads`
-    /// (AVX-512F detected at run time; neighbour values read with gather instructions, or
-    /// with plain loads on AMD, see `dfsph::blocked::Gather`) or `portable`. `avx512f` in
+    /// What the solver's pair loops run on this CPU: `avx512f-gathers`, `avx512f-loads` or
+    /// `avx512f-windows` (AVX-512F detected at run time; neighbour values read with gather
+    /// instructions, with plain loads, or on AMD with plain loads and, in the pressure
+    /// solver, permutes of windows: see `dfsph::blocked::Gather`) or `portable`. `avx512f` in
     /// rows saved before the two were told apart (those always gathered); empty in rows
     /// saved before it was recorded.
     #[serde(default)]

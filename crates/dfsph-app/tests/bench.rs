@@ -80,6 +80,7 @@ fn quick_bench_writes_sane_json_rows() {
             (false, _) => "portable",
             (true, dfsph::blocked::Gather::Instruction) => "avx512f-gathers",
             (true, dfsph::blocked::Gather::Loads) => "avx512f-loads",
+            (true, dfsph::blocked::Gather::Windows) => "avx512f-windows",
         };
         assert_eq!(row["runtime_simd"], expected, "{row}");
     }

@@ -236,6 +236,7 @@ fn runtime_simd() -> String {
         (false, _) => "portable".into(),
         (true, Gather::Instruction) => "avx512f-gathers".into(),
         (true, Gather::Loads) => "avx512f-loads".into(),
+        (true, Gather::Windows) => "avx512f-windows".into(),
     }
 }
 
