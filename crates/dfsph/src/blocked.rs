@@ -1000,7 +1000,7 @@ pub enum Gather {
     /// Where a block's neighbours fit, in every pass after the density pass (whose pair
     /// loop writes the indices): the block's three windows of 32 consecutive particles are
     /// loaded once per pass as whole vectors, and each slot's 16 values are picked out of
-    /// them by permutes through one-byte codes ([`Windows`]). In the density pass, and for
+    /// them by permutes through one-byte codes. In the density pass, and for
     /// blocks that do not fit, as [`Gather::Loads`]. On Zen 4 this took the 5k benchmark
     /// from 1.70 to 1.36 s (two threads) and the 100k column from 19.4 to 15.3 s.
     Windows,
