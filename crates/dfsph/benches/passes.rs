@@ -15,6 +15,7 @@
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
+use dfsph::blocked::Gather;
 use dfsph::boundary::{volumes, wall_volume_correction};
 use dfsph::kernel::CubicSpline;
 use dfsph::neighbors::{Grid, NeighborLists};
@@ -183,7 +184,6 @@ fn passes(c: &mut Criterion) {
         });
         g.finish();
 
-        let nb = Neighborhood::new(&s.fluid_lists, &s.boundary_lists, &s.pair_cache);
         let dt = 1.0e-3f32;
         // A stiffness field like a solve's: positive where compressed.
         let kappa: Vec<f32> = s
@@ -196,36 +196,48 @@ fn passes(c: &mut Criterion) {
         let mut g = c.benchmark_group("pressure");
         g.throughput(Throughput::Elements(n));
         let mut vel = s.fluid.velocity.clone();
-        g.bench_function(BenchmarkId::new("apply", name), |b| {
-            b.iter(|| solver::apply_pressure(s.volume, &kappa, &mut vel, &nb))
-        });
-        for (label, iterations) in [("residual", 0), ("iteration_plus_residual", 1)] {
-            let limits = SolveLimits {
-                tolerance_pct: 0.0,
-                max_error_pct: f64::INFINITY,
-                min_iterations: iterations,
-                max_iterations: iterations,
-            };
-            let mut scratch = SolverScratch::default();
-            g.bench_function(BenchmarkId::new(label, name), |b| {
-                b.iter_batched_ref(
-                    || s.fluid.clone(),
-                    |fluid| {
-                        solver::density_solve(
-                            s.volume,
-                            dt,
-                            solver::max_compression_correction(dt, s.spacing()),
-                            false,
-                            fluid,
-                            &nb,
-                            limits,
-                            &mut scratch,
-                        )
-                        .iterations
-                    },
-                    BatchSize::LargeInput,
-                )
+        // The pressure passes as this CPU runs them, and (`_loads`) reading neighbour values
+        // with plain loads, for the before/after of `Gather::Windows` (AMD).
+        let runs = if Gather::for_this_cpu() == Gather::Loads {
+            vec![("", Gather::Loads)]
+        } else {
+            vec![("", Gather::for_this_cpu()), ("_loads", Gather::Loads)]
+        };
+        for (suffix, gather) in runs {
+            s.pair_cache.blocks.set_gather(gather);
+            s.density_and_factor();
+            let nb = Neighborhood::new(&s.fluid_lists, &s.boundary_lists, &s.pair_cache);
+            g.bench_function(BenchmarkId::new(format!("apply{suffix}"), name), |b| {
+                b.iter(|| solver::apply_pressure(s.volume, &kappa, &mut vel, &nb))
             });
+            for (label, iterations) in [("residual", 0), ("iteration_plus_residual", 1)] {
+                let limits = SolveLimits {
+                    tolerance_pct: 0.0,
+                    max_error_pct: f64::INFINITY,
+                    min_iterations: iterations,
+                    max_iterations: iterations,
+                };
+                let mut scratch = SolverScratch::default();
+                g.bench_function(BenchmarkId::new(format!("{label}{suffix}"), name), |b| {
+                    b.iter_batched_ref(
+                        || s.fluid.clone(),
+                        |fluid| {
+                            solver::density_solve(
+                                s.volume,
+                                dt,
+                                solver::max_compression_correction(dt, s.spacing()),
+                                false,
+                                fluid,
+                                &nb,
+                                limits,
+                                &mut scratch,
+                            )
+                            .iterations
+                        },
+                        BatchSize::LargeInput,
+                    )
+                });
+            }
         }
         g.finish();
     }
