@@ -10,7 +10,7 @@
 //! own index and a zero gradient (9 % padding at 20k and 5 % at 80k on the dam break).
 //!
 //! The indices are stored relative to the block's first particle in 16 bits where every
-//! neighbour lies within ±32k places of it ([`SlotIndex`]): the pressure solver's passes
+//! neighbour lies within ±32k places of it (`SlotIndex`): the pressure solver's passes
 //! then stream 10 bytes per entry instead of 12. With lists from a dense grid (sorted by
 //! cell, row by row) a neighbour is at most about one row of cells away, so this holds
 //! while a row of cells holds fewer than about 32,000 particles (840 in the 2 m wide

@@ -16,6 +16,14 @@
 //! assert!(sim.positions().iter().all(|p| p.is_finite()));
 //! ```
 
+// Off x86-64 the AVX-512 kernels are compiled out, and the plumbing that feeds them (window
+// codes, kernel constants, per-block flags) is left unused; the x86-64 build, which CI lints
+// with `-D warnings`, still reports dead code.
+#![cfg_attr(
+    not(target_arch = "x86_64"),
+    allow(dead_code, unused_variables, unused_mut)
+)]
+
 pub mod actions;
 pub mod blocked;
 pub mod boundary;

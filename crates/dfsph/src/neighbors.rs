@@ -23,7 +23,7 @@ const CHUNK: usize = 512;
 /// `offsets[i]..offsets[i + 1]`, is where they sit in the concatenation of all lists, which is
 /// the layout of any per-pair array kept beside them.
 ///
-/// The lists of each [`CHUNK`] consecutive points stay in the buffer their chunk's parallel
+/// The lists of each `CHUNK` consecutive points stay in the buffer their chunk's parallel
 /// build wrote them to. Copying the buffers into one array took 2 % of a 100k-particle step
 /// and 4 bytes per pair.
 #[derive(Default, Clone, Debug)]
@@ -814,6 +814,7 @@ mod tests {
 
     /// A dense grid of `points` to compare the AVX-512 cell passes with the scalar ones, or
     /// `None` (said on stderr) where this CPU has no AVX-512.
+    #[cfg(target_arch = "x86_64")]
     fn dense_grid_for_simd(radius: f32, points: &[Vec2]) -> Option<Grid> {
         if !crate::blocked::simd_available() {
             eprintln!("no AVX-512 on this CPU: nothing to compare");
@@ -829,6 +830,7 @@ mod tests {
     /// edges (a lattice at half the cell edge, with points a hair either side), past the
     /// grid's edges, at infinities and NaN, and in a tail shorter than 16.
     #[test]
+    #[cfg(target_arch = "x86_64")]
     fn simd_keys_are_the_scalar_keys() {
         let r = 0.04f32;
         let mut pts = Vec::new();
@@ -864,6 +866,7 @@ mod tests {
     /// edges, one and two cells out, far out, at infinities and NaN, and for fewer than 16
     /// points.
     #[test]
+    #[cfg(target_arch = "x86_64")]
     fn simd_query_cells_give_the_scalar_blocks() {
         let r = 0.04f32;
         let pts: Vec<Vec2> = (0..400)

@@ -54,7 +54,7 @@ thread_local! {
 
 /// Run `work` on a worker of rayon's pool while the pool's other workers stay at hand:
 /// instead of going to sleep when it runs out of tasks, each that joins within
-/// [`JOIN_WINDOW`] polls the pool for tasks (and runs them) until `work` returns. Called
+/// `JOIN_WINDOW` polls the pool for tasks (and runs them) until `work` returns. Called
 /// from inside a pool, or with a pool of one worker, this just runs `work` on the calling
 /// thread.
 pub fn with_workers_at_hand<R: Send>(work: impl FnOnce() -> R + Send) -> R {
