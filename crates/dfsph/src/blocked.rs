@@ -1287,17 +1287,8 @@ pub(crate) mod avx512 {
         let (k, _, inv_h) = kernel.constants();
         let c = |v: f32| _mm512_set1_ps(v);
         let support2 = c(kernel.support() * kernel.support());
-        let tables = windows.map(|w| {
-            (
-                w.codes,
-                pair_windows(pos, w.starts),
-                pair_windows(vel, w.starts),
-            )
-        });
-        let origin = I::origin(first);
-        let pbase = pos.as_ptr().add(origin) as *const f32;
-        let vbase = vel.as_ptr().add(origin) as *const f32;
-        let own = indices_from((first - origin) as u32);
+        let neighbours = NeighbourStates::new::<I>(first, pos, vel, gather, windows);
+        let own = indices_from((first - I::origin(first)) as u32);
         let (xi_x, xi_y) = split_xy(xi);
         let dtv = c(dt);
         let mut sum = c(start);
@@ -1305,16 +1296,7 @@ pub(crate) mod avx512 {
             let at = idx.as_ptr().add(kk);
             let j = load_indices(at);
             // x_j + Δt·v_j, multiply then add, as the scalar `Vec2` expression.
-            let ((px, py), (vx, vy)) = match &tables {
-                Some((codes, p, v)) => {
-                    let code = codes.as_ptr().add(kk);
-                    (pick_pairs(code, p), pick_pairs(code, v))
-                }
-                None => (
-                    gather_xy(j, at, pbase, gather),
-                    gather_xy(j, at, vbase, gather),
-                ),
-            };
+            let ((px, py), (vx, vy)) = neighbours.slot(kk, j, at);
             let xj = _mm512_add_ps(px, _mm512_mul_ps(dtv, vx));
             let yj = _mm512_add_ps(py, _mm512_mul_ps(dtv, vy));
             let (rx, ry) = (_mm512_sub_ps(xi_x, xj), _mm512_sub_ps(xi_y, yj));
@@ -1328,6 +1310,71 @@ pub(crate) mod avx512 {
         let mut out = [0.0f32; LANES];
         _mm512_storeu_ps(out.as_mut_ptr(), sum);
         out
+    }
+
+    /// The positions and velocities of a block's neighbours, read slot by slot: through the
+    /// block's windows where given, else as `gather` reads them.
+    struct NeighbourStates<'a> {
+        /// The flat position and velocity arrays from the block's origin on.
+        pos: *const f32,
+        vel: *const f32,
+        gather: Gather,
+        /// The codes and the position and velocity tables of the block's windows.
+        windows: Option<(&'a [u8], PairTables, PairTables)>,
+    }
+
+    impl<'a> NeighbourStates<'a> {
+        /// # Safety
+        /// The CPU must have AVX-512F, and `windows`, where given, must be the block's (each
+        /// window within `pos` and `vel`).
+        #[inline]
+        #[target_feature(enable = "avx512f")]
+        unsafe fn new<I: SlotIndex>(
+            first: usize,
+            pos: &[Vec2],
+            vel: &[Vec2],
+            gather: Gather,
+            windows: Option<Windows<'a>>,
+        ) -> Self {
+            let origin = I::origin(first);
+            NeighbourStates {
+                pos: pos.as_ptr().add(origin) as *const f32,
+                vel: vel.as_ptr().add(origin) as *const f32,
+                gather,
+                windows: windows.map(|w| {
+                    (
+                        w.codes,
+                        pair_windows(pos, w.starts),
+                        pair_windows(vel, w.starts),
+                    )
+                }),
+            }
+        }
+
+        /// The `(x, y)` positions and velocities of the slot at entry `k`, whose offsets `j`
+        /// are also stored at `at`.
+        ///
+        /// # Safety
+        /// The CPU must have AVX-512F, and every offset of the slot must be within the arrays.
+        #[inline]
+        #[target_feature(enable = "avx512f")]
+        unsafe fn slot<I: SlotIndex>(
+            &self,
+            k: usize,
+            j: __m512i,
+            at: *const I,
+        ) -> ((__m512, __m512), (__m512, __m512)) {
+            match &self.windows {
+                Some((codes, p, v)) => {
+                    let code = codes.as_ptr().add(k);
+                    (pick_pairs(code, p), pick_pairs(code, v))
+                }
+                None => (
+                    gather_xy(j, at, self.pos, self.gather),
+                    gather_xy(j, at, self.vel, self.gather),
+                ),
+            }
+        }
     }
 
     /// 16 stored indices from `at`, sign- or zero-extended to 32 bits: offsets from
@@ -1452,17 +1499,8 @@ pub(crate) mod avx512 {
     ) -> ([Vec2; LANES], [Vec2; LANES]) {
         let (k, _, inv_h) = kernel.constants();
         let c = |v: f32| _mm512_set1_ps(v);
-        let tables = windows.map(|w| {
-            (
-                w.codes,
-                pair_windows(pos, w.starts),
-                pair_windows(vel, w.starts),
-            )
-        });
-        let origin = I::origin(first);
-        let pbase = pos.as_ptr().add(origin) as *const f32;
-        let vbase = vel.as_ptr().add(origin) as *const f32;
-        let own = indices_from((first - origin) as u32);
+        let neighbours = NeighbourStates::new::<I>(first, pos, vel, gather, windows);
+        let own = indices_from((first - I::origin(first)) as u32);
         let (xi_x, xi_y) = split_xy(xi);
         let (vi_x, vi_y) = split_xy(vi);
         let (mut sx, mut sy) = (_mm512_setzero_ps(), _mm512_setzero_ps());
@@ -1471,16 +1509,7 @@ pub(crate) mod avx512 {
             let at = idx.as_ptr().add(kk);
             let j = load_indices(at);
             let pair = _mm512_cmpneq_epi32_mask(j, own);
-            let ((xj, yj), (vxj, vyj)) = match &tables {
-                Some((codes, p, v)) => {
-                    let code = codes.as_ptr().add(kk);
-                    (pick_pairs(code, p), pick_pairs(code, v))
-                }
-                None => (
-                    gather_xy(j, at, pbase, gather),
-                    gather_xy(j, at, vbase, gather),
-                ),
-            };
+            let ((xj, yj), (vxj, vyj)) = neighbours.slot(kk, j, at);
             let (rx, ry) = (_mm512_sub_ps(xi_x, xj), _mm512_sub_ps(xi_y, yj));
             let (ux, uy) = (_mm512_sub_ps(vi_x, vxj), _mm512_sub_ps(vi_y, vyj));
             let r2 = _mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry));
