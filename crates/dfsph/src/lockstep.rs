@@ -22,7 +22,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 /// of `pause`): a pass's shares end within microseconds of each other, but a worker
 /// descheduled by the host, or sharing its core with another thread, may be late by a whole
 /// time slice, and spinning through that would keep the late one off the core. After that
-/// the waiting worker runs the pool's pending work, if any, else yields its core.
+/// the waiting worker runs its own pending work, if any, else yields its core.
 const SPINS_BEFORE_YIELD: u32 = 1 << 11;
 
 /// One worker's view of the region.
@@ -228,9 +228,14 @@ impl Region {
             if spins < SPINS_BEFORE_YIELD {
                 spins += 1;
                 std::hint::spin_loop();
-            } else if rayon::yield_now() != Some(rayon::Yield::Executed) {
-                // Nothing of the pool's to run meanwhile (running it keeps a region
-                // started by the worker we wait for from waiting on us): give the core away.
+            } else if rayon::yield_local() != Some(rayon::Yield::Executed) {
+                // Only this worker's own queue and the broadcasts addressed to it (another
+                // region's share, so that a region started by the worker we wait for does
+                // not wait on us). Not other work of the pool: a job taken here that forks
+                // can end up waiting for its half on the worker we wait for, while that
+                // worker, inside the half, has joined this region and waits for us (seen
+                // as a hang of the test suite, two tests stepping on the global pool).
+                // Nothing to run: give the core away.
                 std::thread::yield_now();
             }
         }
