@@ -25,6 +25,8 @@
 //! lie in three short runs (one per row of cells).
 
 use glam::Vec2;
+use std::ops::Range;
+
 use rayon::prelude::*;
 
 use crate::kernel::CubicSpline;
@@ -333,13 +335,34 @@ impl BlockedPairs {
     /// Block `b`'s indices and gradients, slot by slot.
     #[inline(always)]
     fn block(&self, b: usize) -> (Indices<'_>, &[f32], &[f32]) {
-        let e = self.slot_start[b] as usize * LANES..self.slot_start[b + 1] as usize * LANES;
-        let idx = if self.narrow {
-            Indices::Relative(&self.relative[e.clone()])
-        } else {
-            Indices::Absolute(&self.index[e.clone()])
+        let e = self.entry_range(b);
+        let idx = match self.indices() {
+            Indices::Relative(all) => Indices::Relative(&all[e.clone()]),
+            Indices::Absolute(all) => Indices::Absolute(&all[e.clone()]),
         };
         (idx, &self.grad_x[e.clone()], &self.grad_y[e])
+    }
+
+    /// The entries of block `b` in the per-entry arrays.
+    #[inline(always)]
+    fn entry_range(&self, b: usize) -> std::ops::Range<usize> {
+        self.slot_start[b] as usize * LANES..self.slot_start[b + 1] as usize * LANES
+    }
+
+    /// Every block's indices, as stored.
+    #[inline(always)]
+    fn indices(&self) -> Indices<'_> {
+        if self.narrow {
+            Indices::Relative(&self.relative)
+        } else {
+            Indices::Absolute(&self.index)
+        }
+    }
+
+    /// The particles of the consecutive blocks `blocks`.
+    fn particles_of(&self, blocks: &Range<usize>) -> Range<usize> {
+        let end = (blocks.end * LANES).min(self.n);
+        (blocks.start * LANES).min(end)..end
     }
 
     /// Block `b`'s windows and codes, where [`Gather::Windows`] is in use and its neighbours
@@ -347,7 +370,7 @@ impl BlockedPairs {
     #[inline(always)]
     fn windows(&self, b: usize) -> Option<Windows<'_>> {
         let starts = (*self.window_start.get(b)?)?;
-        let e = self.slot_start[b] as usize * LANES..self.slot_start[b + 1] as usize * LANES;
+        let e = self.entry_range(b);
         Some(Windows {
             starts,
             codes: &self.window_code[e],
@@ -523,6 +546,73 @@ impl BlockedPairs {
             if let Some(t) = total.as_deref_mut() {
                 t[l] += kappa[i];
             }
+        }
+    }
+
+    /// [`Self::residual_block`] for the consecutive blocks `blocks`: `delta` and `rate` hold
+    /// one entry per particle of the blocks, `errors` one row per block. The same results,
+    /// with the per-block set-up inside one SIMD call instead of one call per block.
+    #[inline]
+    pub fn residual_blocks(
+        &self,
+        blocks: Range<usize>,
+        vel: &[Vec2],
+        terms: &ResidualTerms,
+        delta: &mut [f32],
+        rate: &mut [f32],
+        errors: &mut [[f32; LANES]],
+    ) {
+        let particles = self.particles_of(&blocks);
+        assert!(blocks.end <= self.blocks() && errors.len() == blocks.len());
+        assert!(delta.len() == particles.len() && rate.len() == particles.len());
+        assert!(vel.len() >= self.n && terms.holds(self.n));
+        #[cfg(target_arch = "x86_64")]
+        if self.avx512 {
+            // SAFETY: AVX-512F is present (checked in `prepare`), every index is below
+            // `self.n <= vel.len()` (checked when written), the per-particle arrays hold all
+            // particles (asserted above), and `delta`, `rate` and `errors` the blocks'.
+            return with_indices!(self.indices(), |idx| unsafe {
+                avx512::residual_blocks(self, idx, blocks, vel, terms, delta, rate, errors)
+            });
+        }
+        let lanes = delta.chunks_mut(LANES).zip(rate.chunks_mut(LANES));
+        for ((b, (d, r)), e) in blocks.zip(lanes).zip(errors) {
+            self.residual_block(b, vel, terms, d, r, e);
+        }
+    }
+
+    /// [`Self::apply_block`] for the consecutive blocks `blocks`: `vel` and `total`, when
+    /// given, hold one entry per particle of the blocks. The same results, with the
+    /// per-block set-up inside one SIMD call instead of one call per block.
+    #[inline]
+    pub fn apply_blocks(
+        &self,
+        blocks: Range<usize>,
+        volume: f32,
+        kappa: &[f32],
+        grad_sum: &[Vec2],
+        vel: &mut [Vec2],
+        total: Option<&mut [f32]>,
+    ) {
+        let particles = self.particles_of(&blocks);
+        assert!(blocks.end <= self.blocks() && vel.len() == particles.len());
+        assert!(kappa.len() >= self.n && grad_sum.len() >= self.n);
+        assert!(total.as_ref().is_none_or(|t| t.len() == particles.len()));
+        #[cfg(target_arch = "x86_64")]
+        if self.avx512 {
+            // SAFETY: AVX-512F is present, every index is below `self.n <= kappa.len()`,
+            // `kappa` and `grad_sum` hold all particles, `vel` and `total` the blocks'
+            // (asserted above).
+            return with_indices!(self.indices(), |idx| unsafe {
+                avx512::apply_blocks(self, idx, blocks, volume, kappa, grad_sum, vel, total)
+            });
+        }
+        let mut total = total;
+        for (k, (b, v)) in blocks.zip(vel.chunks_mut(LANES)).enumerate() {
+            let t = total
+                .as_deref_mut()
+                .map(|t| &mut t[k * LANES..k * LANES + v.len()]);
+            self.apply_block(b, volume, kappa, grad_sum, v, t);
         }
     }
 
@@ -1588,6 +1678,86 @@ pub(crate) mod avx512 {
         _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(x), sign))
     }
 
+    /// [`super::BlockedPairs::residual_blocks`]: [`residual_block`] block by block, with
+    /// `idx` every block's indices.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F, `idx` must be `pairs`' indices, every index below
+    /// `vel.len()`, `vel` and the arrays of `terms` must hold all particles, and `delta`,
+    /// `rate` and `errors` those of `blocks` (one entry per particle, one row per block).
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn residual_blocks<I: SlotIndex>(
+        pairs: &super::BlockedPairs,
+        idx: &[I],
+        blocks: std::ops::Range<usize>,
+        vel: &[Vec2],
+        terms: &super::ResidualTerms,
+        delta: &mut [f32],
+        rate: &mut [f32],
+        errors: &mut [[f32; LANES]],
+    ) {
+        let gather = pairs.gather();
+        let lanes = delta.chunks_mut(LANES).zip(rate.chunks_mut(LANES));
+        for ((b, (d, r)), e) in blocks.zip(lanes).zip(errors) {
+            let entries = pairs.entry_range(b);
+            residual_block(
+                &idx[entries.clone()],
+                &pairs.grad_x[entries.clone()],
+                &pairs.grad_y[entries],
+                vel,
+                b * LANES,
+                terms,
+                d,
+                r,
+                e,
+                gather,
+                pairs.windows(b),
+            );
+        }
+    }
+
+    /// [`super::BlockedPairs::apply_blocks`]: [`apply_block`] block by block, with `idx`
+    /// every block's indices.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F, `idx` must be `pairs`' indices, every index below
+    /// `kappa.len()`, `kappa` and `grad_sum` must hold all particles, and `vel` and `total`,
+    /// when given, those of `blocks`.
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn apply_blocks<I: SlotIndex>(
+        pairs: &super::BlockedPairs,
+        idx: &[I],
+        blocks: std::ops::Range<usize>,
+        volume: f32,
+        kappa: &[f32],
+        grad_sum: &[Vec2],
+        vel: &mut [Vec2],
+        mut total: Option<&mut [f32]>,
+    ) {
+        let gather = pairs.gather();
+        for (k, (b, v)) in blocks.zip(vel.chunks_mut(LANES)).enumerate() {
+            let entries = pairs.entry_range(b);
+            let t = total
+                .as_deref_mut()
+                .map(|t| &mut t[k * LANES..k * LANES + v.len()]);
+            apply_block(
+                &idx[entries.clone()],
+                &pairs.grad_x[entries.clone()],
+                &pairs.grad_y[entries],
+                kappa,
+                b * LANES,
+                grad_sum,
+                volume,
+                v,
+                t,
+                gather,
+                pairs.windows(b),
+            );
+        }
+    }
+
     /// [`super::BlockedPairs::residual_block`]: the pair loop of [`velocity_gradient_dots`],
     /// then the per-particle terms 16 lanes at a time, with the portable code's operations
     /// in its order (so the two differ only by the pair loop's fused multiply-adds).
@@ -1597,6 +1767,7 @@ pub(crate) mod avx512 {
     /// every index below `vel.len()`, `vel` and the arrays of `terms` must hold the
     /// `delta.len()` (≤ 16) particles from `first` on, and `rate` as many entries as `delta`.
     #[allow(clippy::too_many_arguments)]
+    #[inline]
     #[target_feature(enable = "avx512f")]
     pub unsafe fn residual_block<I: SlotIndex>(
         idx: &[I],
@@ -1647,6 +1818,7 @@ pub(crate) mod avx512 {
     /// every index below `kappa.len()`, `kappa` and `grad_sum` must hold the `vel.len()`
     /// (≤ 16) particles from `first` on, and `total`, when given, as many entries as `vel`.
     #[allow(clippy::too_many_arguments)]
+    #[inline]
     #[target_feature(enable = "avx512f")]
     pub unsafe fn apply_block<I: SlotIndex>(
         idx: &[I],
@@ -2295,6 +2467,112 @@ mod tests {
             assert!(
                 instruction == loads,
                 "the two ways of reading neighbours differ"
+            );
+        }
+    }
+
+    /// The passes over runs of blocks give the bits of one call per block: on both paths,
+    /// reading through windows and with loads, for runs that end in the partial last block
+    /// (a run that read another block's entries, or wrote a lane past its particles, would
+    /// differ).
+    #[test]
+    fn passes_over_runs_of_blocks_give_the_per_block_bits() {
+        let n = 1000;
+        let (lists, grads) = lattice_lists(n, 40, Some(485));
+        let val = |k: usize, salt: u64| unit(k as u64 * 3 + salt) - 0.3;
+        let vec = |k: usize, salt: u64| Vec2::new(val(k, salt), val(k, salt + 1));
+        let kappa: Vec<f32> = (0..n).map(|k| val(k, 1)).collect();
+        let vel: Vec<Vec2> = (0..n).map(|k| vec(k, 2)).collect();
+        let grad_sum: Vec<Vec2> = (0..n).map(|k| vec(k, 4)).collect();
+        let wall_flux: Vec<f32> = (0..n).map(|k| val(k, 6)).collect();
+        let source: Vec<f32> = (0..n).map(|k| val(k, 7)).collect();
+        let factor: Vec<f32> = (0..n).map(|k| 1.0 + val(k, 8)).collect();
+        let terms = ResidualTerms {
+            volume: 0.7,
+            grad_sum: &grad_sum,
+            wall_flux: &wall_flux,
+            source: &source,
+            rate_scale: 0.25,
+            factor: &factor,
+            increment_scale: 3.0,
+        };
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let pair_bits = |v: &[Vec2]| {
+            v.iter()
+                .flat_map(|p| [p.x.to_bits(), p.y.to_bits()])
+                .collect::<Vec<_>>()
+        };
+        for (simd, gather) in [
+            (true, Gather::Windows),
+            (true, Gather::Loads),
+            (false, Gather::Loads),
+        ] {
+            let mut blocks = BlockedPairs::default();
+            blocks.set_simd(simd);
+            blocks.set_gather(gather);
+            blocks.build(&lists, &grads);
+            let count = blocks.blocks();
+            // Both ways: (delta, rates, errors, velocities, totals).
+            let mut outs = Vec::new();
+            for run in [1, 5] {
+                let (mut delta, mut rates) = (vec![0.0f32; n], vec![0.0f32; n]);
+                let mut errors = vec![[f32::NAN; LANES]; count];
+                let mut moved = vel.clone();
+                let mut total: Vec<f32> = (0..n).map(|k| val(k, 9)).collect();
+                for start in (0..count).step_by(run) {
+                    let blocks_run = start..(start + run).min(count);
+                    let p = start * LANES..(blocks_run.end * LANES).min(n);
+                    if run == 1 {
+                        let e = &mut errors[start];
+                        blocks.residual_block(
+                            start,
+                            &vel,
+                            &terms,
+                            &mut delta[p.clone()],
+                            &mut rates[p.clone()],
+                            e,
+                        );
+                        blocks.apply_block(
+                            start,
+                            0.7,
+                            &kappa,
+                            &grad_sum,
+                            &mut moved[p.clone()],
+                            Some(&mut total[p]),
+                        );
+                    } else {
+                        let e = &mut errors[blocks_run.clone()];
+                        blocks.residual_blocks(
+                            blocks_run.clone(),
+                            &vel,
+                            &terms,
+                            &mut delta[p.clone()],
+                            &mut rates[p.clone()],
+                            e,
+                        );
+                        blocks.apply_blocks(
+                            blocks_run,
+                            0.7,
+                            &kappa,
+                            &grad_sum,
+                            &mut moved[p.clone()],
+                            Some(&mut total[p]),
+                        );
+                    }
+                }
+                let flat: Vec<f32> = errors.iter().flatten().copied().collect();
+                outs.push((
+                    bits(&delta),
+                    bits(&rates),
+                    bits(&flat),
+                    pair_bits(&moved),
+                    bits(&total),
+                ));
+            }
+            assert!(outs[0] == outs[1], "simd {simd}, {gather:?}");
+            assert!(
+                outs[0].4 != bits(&(0..n).map(|k| val(k, 9)).collect::<Vec<_>>()),
+                "a real test"
             );
         }
     }

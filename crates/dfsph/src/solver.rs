@@ -394,11 +394,10 @@ fn jacobi_solve(
                 let groups = d.chunks_mut(GROUP * LANES).zip(r.chunks_mut(GROUP * LANES));
                 for (g, (d, r)) in groups.enumerate() {
                     let count = d.len().div_ceil(LANES);
-                    let chunks = d.chunks_mut(LANES).zip(r.chunks_mut(LANES));
-                    for (k, ((d, r), e)) in chunks.zip(&mut errors).enumerate() {
-                        let b = part_blocks.start + g * GROUP + k;
-                        nb.blocks.residual_block(b, vel, &terms, d, r, e);
-                    }
+                    let first = part_blocks.start + g * GROUP;
+                    let e = &mut errors[..count];
+                    nb.blocks
+                        .residual_blocks(first..first + count, vel, &terms, d, r, e);
                     acc = reduce::fold_block_sums(acc, &errors, count);
                 }
                 *sum = acc;
@@ -423,11 +422,8 @@ fn jacobi_solve(
                 let (part_blocks, items) = part(p);
                 let (vel, sum) =
                     unsafe { (velocity.part_mut(items.clone()), total.part_mut(items)) };
-                let chunks = vel.chunks_mut(LANES).zip(sum.chunks_mut(LANES));
-                for (b, (v, t)) in part_blocks.zip(chunks) {
-                    nb.blocks
-                        .apply_block(b, volume, kappa, nb.grad_sum, v, Some(t));
-                }
+                nb.blocks
+                    .apply_blocks(part_blocks, volume, kappa, nb.grad_sum, vel, Some(sum));
             }
             team.wait();
         };
