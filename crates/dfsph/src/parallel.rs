@@ -47,6 +47,32 @@ const JOIN_WINDOW: Duration = Duration::from_micros(5);
 /// 129–188 of 207 steps of the 100k column, within 60 µs in 202.
 pub const WORKERS_STILL_POLLING: Duration = Duration::from_micros(50);
 
+/// Calls of [`alone_in_flight`] whose guard is alive: steps in progress, of any
+/// simulation on any pool of the process.
+static IN_FLIGHT: AtomicUsize = AtomicUsize::new(0);
+
+/// Counts a step as in progress until the returned guard drops, and says whether no other
+/// step was then in progress. Only a step alone may run [`with_workers_at_hand`]: that
+/// call's work reaches its worker as a broadcast, which a worker also runs while it waits
+/// at a lockstep barrier (`rayon::yield_local`). Run there, inside another step's region,
+/// the work's forked passes can end up waiting on the other worker while it waits at that
+/// barrier for this one (a hang seen in the test suite, where tests step simulations on
+/// the global pool at once). Steps that overlap run as plain pool jobs, which a barrier
+/// does not pick up.
+pub fn alone_in_flight() -> (InFlight, bool) {
+    let before = IN_FLIGHT.fetch_add(1, Ordering::AcqRel);
+    (InFlight, before == 0)
+}
+
+/// A step in progress ([`alone_in_flight`]).
+pub struct InFlight;
+
+impl Drop for InFlight {
+    fn drop(&mut self) {
+        IN_FLIGHT.fetch_sub(1, Ordering::AcqRel);
+    }
+}
+
 thread_local! {
     /// Set while this thread runs [`with_workers_at_hand`]'s work or stands by for one.
     static AT_HAND_BUSY: Cell<bool> = const { Cell::new(false) };

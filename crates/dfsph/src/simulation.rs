@@ -296,14 +296,17 @@ impl Simulation {
     /// wake per pass, which on a 2-core virtual machine took half the wall time of a
     /// 5,000-particle dam break. When steps follow each other closely (a batch run, the
     /// viewer's steps within a frame), the pool's other workers stand by for the whole step
-    /// ([`parallel::with_workers_at_hand`]) rather than falling asleep between passes.
+    /// ([`parallel::with_workers_at_hand`]) rather than falling asleep between passes, unless
+    /// another step (of another simulation, on another thread) is in progress meanwhile
+    /// ([`parallel::alone_in_flight`]).
     pub fn step(&mut self) -> &StepStats {
         let back_to_back = self
             .last_step_end
             .is_some_and(|end| end.elapsed() < parallel::WORKERS_STILL_POLLING);
+        let (_in_flight, alone) = parallel::alone_in_flight();
         if rayon::current_thread_index().is_some() {
             self.advance();
-        } else if back_to_back && rayon::current_num_threads() > 1 {
+        } else if back_to_back && alone && rayon::current_num_threads() > 1 {
             parallel::with_workers_at_hand(|| self.advance());
         } else {
             rayon::scope(|_| self.advance());
