@@ -336,6 +336,15 @@ mod tests {
         assert_eq!(most, 1);
     }
 
+    /// While one step is in progress, another is not alone (whatever other tests step
+    /// meanwhile), so it does not run at hand.
+    #[test]
+    fn a_step_that_overlaps_another_is_not_alone() {
+        let (_first, _) = alone_in_flight();
+        let (_second, alone) = alone_in_flight();
+        assert!(!alone);
+    }
+
     #[test]
     fn inside_a_pool_the_work_just_runs_on_the_calling_worker() {
         // Each worker of a pool calls it at once: each runs its own work, on itself.
