@@ -335,18 +335,30 @@ impl BlockedPairs {
     /// Block `b`'s indices and gradients, slot by slot.
     #[inline(always)]
     fn block(&self, b: usize) -> (Indices<'_>, &[f32], &[f32]) {
-        let e = self.entry_range(b);
-        let idx = match self.indices() {
-            Indices::Relative(all) => Indices::Relative(&all[e.clone()]),
-            Indices::Absolute(all) => Indices::Absolute(&all[e.clone()]),
-        };
-        (idx, &self.grad_x[e.clone()], &self.grad_y[e])
+        match self.indices() {
+            Indices::Relative(all) => {
+                let (idx, gx, gy) = self.block_of(all, b);
+                (Indices::Relative(idx), gx, gy)
+            }
+            Indices::Absolute(all) => {
+                let (idx, gx, gy) = self.block_of(all, b);
+                (Indices::Absolute(idx), gx, gy)
+            }
+        }
     }
 
     /// The entries of block `b` in the per-entry arrays.
     #[inline(always)]
     fn entry_range(&self, b: usize) -> std::ops::Range<usize> {
         self.slot_start[b] as usize * LANES..self.slot_start[b + 1] as usize * LANES
+    }
+
+    /// Block `b`'s part of `idx` (every block's indices, as [`Self::indices`] holds them)
+    /// and of the gradients.
+    #[inline(always)]
+    fn block_of<'a, I>(&'a self, idx: &'a [I], b: usize) -> (&'a [I], &'a [f32], &'a [f32]) {
+        let e = self.entry_range(b);
+        (&idx[e.clone()], &self.grad_x[e.clone()], &self.grad_y[e])
     }
 
     /// Every block's indices, as stored.
@@ -1700,11 +1712,11 @@ pub(crate) mod avx512 {
         let gather = pairs.gather();
         let lanes = delta.chunks_mut(LANES).zip(rate.chunks_mut(LANES));
         for ((b, (d, r)), e) in blocks.zip(lanes).zip(errors) {
-            let entries = pairs.entry_range(b);
+            let (idx, gx, gy) = pairs.block_of(idx, b);
             residual_block(
-                &idx[entries.clone()],
-                &pairs.grad_x[entries.clone()],
-                &pairs.grad_y[entries],
+                idx,
+                gx,
+                gy,
                 vel,
                 b * LANES,
                 terms,
@@ -1738,14 +1750,14 @@ pub(crate) mod avx512 {
     ) {
         let gather = pairs.gather();
         for (k, (b, v)) in blocks.zip(vel.chunks_mut(LANES)).enumerate() {
-            let entries = pairs.entry_range(b);
+            let (idx, gx, gy) = pairs.block_of(idx, b);
             let t = total
                 .as_deref_mut()
                 .map(|t| &mut t[k * LANES..k * LANES + v.len()]);
             apply_block(
-                &idx[entries.clone()],
-                &pairs.grad_x[entries.clone()],
-                &pairs.grad_y[entries],
+                idx,
+                gx,
+                gy,
                 kappa,
                 b * LANES,
                 grad_sum,
