@@ -159,6 +159,11 @@ pub fn run<R: Send>(body: impl Fn(&Team) -> R + Sync) -> Vec<R> {
             region: &region,
         })];
     }
+    // Started from outside the pool, the region is pool work in progress just as a step
+    // is: no step may run at hand meanwhile (`parallel::alone_in_flight`).
+    let _in_flight = rayon::current_thread_index()
+        .is_none()
+        .then(|| crate::parallel::alone_in_flight().0);
     rayon::broadcast(|ctx| {
         let team = Team {
             index: ctx.index(),

@@ -48,11 +48,12 @@ const JOIN_WINDOW: Duration = Duration::from_micros(5);
 pub const WORKERS_STILL_POLLING: Duration = Duration::from_micros(50);
 
 /// Calls of [`alone_in_flight`] whose guard is alive: steps in progress, of any
-/// simulation on any pool of the process.
+/// simulation on any pool of the process, and lockstep regions started from outside a pool.
 static IN_FLIGHT: AtomicUsize = AtomicUsize::new(0);
 
-/// Counts a step as in progress until the returned guard drops, and says whether no other
-/// step was then in progress. Only a step alone may run [`with_workers_at_hand`]: that
+/// Counts a step (or a lockstep region started from outside a pool) as in progress until
+/// the returned guard drops, and says whether nothing else was then in progress. Only a
+/// step alone may run [`with_workers_at_hand`]: that
 /// call's work reaches its worker as a broadcast, which a worker also runs while it waits
 /// at a lockstep barrier (`rayon::yield_local`). Run there, inside another step's region,
 /// the work's forked passes can end up waiting on the other worker while it waits at that
