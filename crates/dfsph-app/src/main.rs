@@ -124,11 +124,12 @@ fn run(args: RunArgs) -> Result<(), Failure> {
         None => None,
     };
     // A replay runs with the recording's thread count unless told otherwise: results are
-    // bit-identical only for the same count.
+    // bit-identical only for the same count. The header's count is bounded
+    // (`recording::MAX_THREADS`) when the recording is parsed.
     let threads = args
         .threads
         .map(|n| n as usize)
-        .or(recording.as_ref().map(|r| r.header.threads.clamp(1, 4096)));
+        .or(recording.as_ref().map(|r| r.header.threads));
     if let Some(n) = threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)

@@ -219,6 +219,13 @@ fn good_recording(dir: &Path) -> (PathBuf, String) {
     (scene, text)
 }
 
+/// The `"threads":N` of a recording's header, as written.
+fn threads_key(recording: &str) -> String {
+    let header: serde_json::Value =
+        serde_json::from_str(recording.lines().next().unwrap()).unwrap();
+    format!("\"threads\":{}", header["threads"])
+}
+
 #[test]
 fn malformed_recordings_are_refused_naming_the_line() {
     let tmp = tempfile::tempdir().unwrap();
@@ -238,6 +245,16 @@ fn malformed_recordings_are_refused_naming_the_line() {
             "truncated.jsonl",
             Some(header.as_bytes()[..header.len() / 2].to_vec()),
             "line 1: header: not valid JSON",
+        ),
+        (
+            // Without the bound a replay started a million threads (stack overflow) or, later,
+            // 4096 of them on a small machine.
+            "threads.jsonl",
+            Some(
+                good.replacen(&threads_key(&good), "\"threads\":1000000", 1)
+                    .into_bytes(),
+            ),
+            "line 1: header: `threads` must be 1 to 1024 worker threads, got 1000000",
         ),
         (
             "version.jsonl",

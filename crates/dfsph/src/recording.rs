@@ -33,6 +33,10 @@ use crate::simulation::Simulation;
 pub const FORMAT: &str = "dfsph2d-recording";
 /// The format version this code writes and reads.
 pub const VERSION: u32 = 1;
+/// The most worker threads a header may name. A replay starts that many threads (unless
+/// `--threads` says otherwise), each with its own stack, so an absurd count from a file would
+/// exhaust memory or crawl; 1024 is more than the cores of any machine a session is recorded on.
+pub const MAX_THREADS: usize = 1024;
 
 /// The first line: what the session started from.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -276,6 +280,12 @@ fn parse_header(line: &str) -> Result<Header, String> {
         let path = e.path().to_string();
         format!("header: `{path}`: {}", e.into_inner())
     })?;
+    if !(1..=MAX_THREADS).contains(&header.threads) {
+        return Err(format!(
+            "header: `threads` must be 1 to {MAX_THREADS} worker threads, got {}",
+            header.threads
+        ));
+    }
     header
         .scene
         .validate()
@@ -458,6 +468,14 @@ mod tests {
             (
                 good.replacen("\"threads\":2", "\"threads\":2,\"x\":1", 1),
                 "unknown field `x`",
+            ),
+            (
+                good.replacen("\"threads\":2", "\"threads\":1000000", 1),
+                "line 1: header: `threads` must be 1 to 1024 worker threads, got 1000000",
+            ),
+            (
+                good.replacen("\"threads\":2", "\"threads\":0", 1),
+                "`threads` must be 1 to 1024",
             ),
             (with(1, "{\"step\": 0"), "line 2: not valid JSON"),
             (with(2, "[]"), "line 3: expected an object"),
