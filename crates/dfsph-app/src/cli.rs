@@ -135,7 +135,8 @@ pub struct RunArgs {
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
 
-    /// Simulated time between particle snapshots, in seconds.
+    /// Simulated time between particle snapshots, in seconds (at most 1,000,000 snapshots over
+    /// the run).
     #[arg(long, value_name = "SECONDS", default_value = "0.05", value_parser = positive_seconds)]
     pub every: f64,
 

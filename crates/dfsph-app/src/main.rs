@@ -141,6 +141,7 @@ fn run(args: RunArgs) -> Result<(), Failure> {
         Some(r) => r.header.scene.clone(),
         None => scene,
     };
+    check_every(args.every, args.until, recording.as_ref(), &scene).map_err(Failure::input)?;
     output::check_output_dir(&args.out).map_err(Failure::input)?;
     let sim = Simulation::new(&scene)
         .map_err(|e| Failure::input(format!("scene `{}`: {e}", args.scene)))?;
@@ -198,6 +199,39 @@ fn run(args: RunArgs) -> Result<(), Failure> {
         }),
         None => Ok(()),
     }
+}
+
+/// The most particle snapshots `--every` may ask for over a run. Each is a file per format, and
+/// finding the next snapshot time counts through the ones a step jumps over, so an `--every`
+/// of 1e-300 s hung before step 1; a million frames is more than any run can usefully write.
+const MAX_SNAPSHOTS: f64 = 1_000_000.0;
+
+/// Refuse an `--every` that would give more than [`MAX_SNAPSHOTS`] snapshots over `--until`,
+/// or, for a replay without `--until`, over the longest the recording can last (its steps at
+/// the scene's largest time step). `every` is already finite and positive (the parser).
+fn check_every(
+    every: f64,
+    until: Option<f64>,
+    recording: Option<&dfsph::recording::Recording>,
+    scene: &dfsph::Scene,
+) -> Result<(), String> {
+    let (span, what) = match (until, recording) {
+        (Some(until), _) => (until, format!("over --until {until} s")),
+        (None, Some(r)) => {
+            let span = r.steps() as f64 * scene.time_step.max;
+            (span, format!("over the recording's at most {span} s"))
+        }
+        (None, None) => return Ok(()),
+    };
+    let frames = span / every;
+    if frames.is_finite() && frames <= MAX_SNAPSHOTS {
+        return Ok(());
+    }
+    Err(format!(
+        "--every {every:e} s would take {frames:.3e} snapshots {what}; at most {} are allowed \
+         (use a larger --every)",
+        MAX_SNAPSHOTS as u64
+    ))
 }
 
 /// `dfsph2d validate`: run the cases, write the report; exit 1 when a check fails.

@@ -356,6 +356,36 @@ fn malformed_scenes_exit_2_name_the_problem_and_write_nothing() {
 }
 
 #[test]
+fn an_every_giving_more_than_a_million_snapshots_is_refused() {
+    // --every 1e-300 used to hang before step 1, counting through snapshot times.
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let scene = write_scene(dir, "coarse.json", COARSE.as_bytes());
+    let scene = scene.to_str().unwrap();
+    assert_rejected(
+        dir,
+        scene,
+        &["--every", "1e-300"],
+        "error: --every 1e-300 s would take 5.000e298 snapshots over --until 0.05 s; \
+         at most 1000000 are allowed (use a larger --every)",
+    );
+    assert_rejected(dir, scene, &["--every", "2.5e-8"], "--every");
+    // 500,000 snapshot times over the run is allowed (one snapshot per step at most).
+    let out_dir = dir.join("ok");
+    let out = dfsph2d(&[
+        "run",
+        scene,
+        "--until",
+        "0.001",
+        "--every",
+        "2e-9",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+}
+
+#[test]
 fn bad_arguments_exit_2_and_write_nothing() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
