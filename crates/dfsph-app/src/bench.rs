@@ -324,12 +324,18 @@ pub fn bench(args: BenchArgs) -> Result<(), String> {
         let text = serde_json::to_string_pretty(&rows).expect("rows serialise");
         std::fs::write(path, text + "\n")
             .map_err(|e| format!("cannot write `{}`: {e}", path.display()))?;
-        eprintln!("bench: rows written to {}", path.display());
+        eprintln!(
+            "bench: rows written to {}",
+            crate::scene_arg::terminal_safe(&path.display().to_string())
+        );
     }
     if let Some(path) = &args.plot {
         std::fs::write(path, plot::svg(&rows))
             .map_err(|e| format!("cannot write `{}`: {e}", path.display()))?;
-        eprintln!("bench: plot written to {}", path.display());
+        eprintln!(
+            "bench: plot written to {}",
+            crate::scene_arg::terminal_safe(&path.display().to_string())
+        );
     }
     Ok(())
 }

@@ -35,7 +35,7 @@ use clap::Parser;
 use dfsph::{scene, Simulation};
 
 use cli::{Cli, Command, RunArgs, ValidateArgs, ViewArgs};
-use scene_arg::{load_scene, one_line};
+use scene_arg::{load_scene, one_line, terminal_safe};
 
 /// A failure with its exit code; printed as one `error: ...` line.
 struct Failure {
@@ -86,7 +86,7 @@ fn main() -> ExitCode {
         Err(f) => {
             // An empty message: the command already said why (`stress`'s summary line).
             if !f.message.is_empty() {
-                eprintln!("error: {}", one_line(&f.message));
+                eprintln!("error: {}", terminal_safe(&one_line(&f.message)));
             }
             ExitCode::from(f.code)
         }
@@ -166,8 +166,8 @@ fn run(args: RunArgs) -> Result<(), Failure> {
         None => (run::execute(&plan, sim).map_err(Failure::runtime)?, None),
     };
     match &replayed {
-        Some(r) => println!("{}; {}", outcome.summary(&plan.out), r.note),
-        None => println!("{}", outcome.summary(&plan.out)),
+        Some(r) => println!("{}; {}", terminal_safe(&outcome.summary(&plan.out)), r.note),
+        None => println!("{}", terminal_safe(&outcome.summary(&plan.out))),
     }
     if outcome.interrupted {
         return Err(Failure {
@@ -261,7 +261,7 @@ fn validate_cmd(args: ValidateArgs) -> Result<(), Failure> {
         outcome.checks,
         outcome.failed,
         outcome.wall_s,
-        outcome.report.display()
+        terminal_safe(&outcome.report.display().to_string())
     );
     if outcome.failed > 0 {
         return Err(Failure {

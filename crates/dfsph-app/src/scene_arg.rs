@@ -94,6 +94,23 @@ pub fn one_line(s: &str) -> String {
     s.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
+/// `s` safe to print on a terminal: every control character (`char::is_control`: ESC, BEL,
+/// CR, ...) is written as its Rust escape (`\u{1b}`, `\r`), other text as it is. Names and
+/// paths come from scene files, recordings and the command line, and printed raw an ANSI
+/// sequence in a scene's `name` cleared the terminal or retitled its window. Everything the
+/// CLI prints that may hold user text goes through this.
+pub fn terminal_safe(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        if c.is_control() {
+            out.extend(c.escape_debug());
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -154,5 +171,13 @@ mod tests {
     #[test]
     fn one_line_collapses_whitespace() {
         assert_eq!(one_line("a\n  b\tc "), "a b c");
+    }
+
+    #[test]
+    fn terminal_safe_escapes_control_characters_only() {
+        assert_eq!(
+            terminal_safe("\u{1b}]0;pwned\u{7}\u{1b}[2J déjà \"vu\" 水\r\u{9b}"),
+            "\\u{1b}]0;pwned\\u{7}\\u{1b}[2J déjà \"vu\" 水\\r\\u{9b}"
+        );
     }
 }

@@ -15,7 +15,7 @@ use dfsph::recording::{End, Header, Recorder};
 use dfsph::{Action, Scene, Simulation, StepStats, Vec2};
 
 use crate::cli::StressArgs;
-use crate::scene_arg::{load_scene, one_line};
+use crate::scene_arg::{load_scene, one_line, terminal_safe};
 use crate::Failure;
 
 /// The viewer's pour speed, m/s (`dfsph_viewer::input::POUR_SPEED`).
@@ -46,7 +46,7 @@ pub fn command(args: StressArgs) -> Result<(), Failure> {
         density_bound_pct: args.density_bound,
     };
     let outcome = run(&plan, sim, recorder).map_err(Failure::runtime)?;
-    println!("{}", outcome.summary(&scene.name, &plan));
+    println!("{}", terminal_safe(&outcome.summary(&scene.name, &plan)));
     if outcome.interrupted {
         return Err(Failure {
             code: crate::interrupt::EXIT_CODE,

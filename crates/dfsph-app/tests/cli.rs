@@ -386,6 +386,57 @@ fn an_every_giving_more_than_a_million_snapshots_is_refused() {
 }
 
 #[test]
+fn control_characters_in_names_are_printed_escaped() {
+    // A scene named with ANSI sequences used to clear the terminal and retitle its window
+    // when `run` printed its summary.
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let scene = write_scene(
+        dir,
+        "ansi.json",
+        br#"{"particle_radius": 0.05, "name": "\u001b]0;pwned\u0007\u001b[2J"}"#,
+    );
+    let escaped = r"\u{1b}]0;pwned\u{7}\u{1b}[2J";
+    let out_dir = dir.join("out\u{1b}[2J");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "run",
+            scene.to_str().unwrap(),
+            "--until",
+            "0.01",
+            "--out",
+            out_dir.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        dfsph2d(&args)
+    };
+    // The summary line: the scene's name and the output directory.
+    let out = run(&[]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert!(
+        !out.stdout.contains(&0x1b) && !out.stderr.contains(&0x1b),
+        "{stdout:?}"
+    );
+    assert!(stdout.starts_with(escaped), "{stdout}");
+    assert!(stdout.contains(r"out\u{1b}[2J"), "{stdout}");
+    // An error line naming a path from the command line.
+    let missing = dir.join("missing\u{1b}[2J.jsonl");
+    let out = run(&["--replay", missing.to_str().unwrap()]);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(!out.stderr.contains(&0x1b), "{stderr:?}");
+    assert!(
+        stderr.contains(r"missing\u{1b}[2J.jsonl` does not exist"),
+        "{stderr}"
+    );
+    // `stress` prints the scene's name in its summary.
+    let out = dfsph2d(&["stress", scene.to_str().unwrap(), "--steps", "3"]);
+    assert!(!out.stdout.contains(&0x1b) && !out.stderr.contains(&0x1b));
+    assert!(text(&out.stdout).contains(escaped), "{}", text(&out.stdout));
+}
+
+#[test]
 fn bad_arguments_exit_2_and_write_nothing() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
