@@ -57,6 +57,7 @@ impl State {
             &self.boundary_lists,
             &mut self.pair_cache,
             self.max_factor,
+            solver::AKINCI_WALLS,
         );
     }
 }

@@ -68,6 +68,31 @@ impl BoundarySamples {
         }
     }
 
+    /// The tank walls for the hexagonal packing: the sites of the fluid's hexagonal lattice
+    /// ([`crate::packing`], anchored at `lo`) outside the interior `[lo, hi]` and within two
+    /// spacings of it, each with the fluid's area d², so that fluid next to a wall sees its
+    /// lattice continue.
+    pub fn add_hexagonal_tank(&mut self, lo: [f64; 2], hi: [f64; 2], d: f64, body: BodyId) {
+        let reach = 2.0 * d;
+        let outer = (
+            [lo[0] - reach, lo[1] - reach],
+            [hi[0] + reach, hi[1] + reach],
+        );
+        let tolerance = 1.0e-9 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
+        for p in crate::packing::sites(lo, outer.0, outer.1, d, 0.0) {
+            let (x, y) = (p.x as f64, p.y as f64);
+            let inside = x >= lo[0] - tolerance
+                && x <= hi[0] + tolerance
+                && y >= lo[1] - tolerance
+                && y <= hi[1] + tolerance;
+            if !inside {
+                self.positions.push(p);
+                self.bodies.push(body);
+                self.lattice_area.push(Some((d * d) as f32));
+            }
+        }
+    }
+
     /// A solid box: its two outermost layers (the inside is never reached by fluid).
     pub fn add_rect(&mut self, lo: Vec2, hi: Vec2, d: f32, body: BodyId) {
         let nx = ((hi.x - lo.x) / d).round().max(1.0) as i32;

@@ -27,10 +27,12 @@
 pub mod actions;
 pub mod blocked;
 pub mod boundary;
+pub mod density_cg;
 pub mod forces;
 pub mod kernel;
 pub mod lockstep;
 pub mod neighbors;
+pub mod packing;
 pub mod parallel;
 pub mod particles;
 pub mod probes;

@@ -255,10 +255,30 @@ pub fn wall_pressure_at(sim: &Simulation, x: Vec2, normal: Vec2) -> f64 {
     let h = kernel.support();
     let d = sim.spacing();
     let tangent = normal.perp();
-    // Column spacing along the face: the tank sampling stretches d to fit the wall exactly.
     let (lo, hi) = sim.tank_interior();
-    let length = ((hi - lo) * tangent).abs().max_element();
-    let a = length / (length / d).round().max(1.0);
+    // Half-width of the window along the face: the spacing of the wall's particles along it.
+    // The square sampling stretches d to fit the wall exactly; the hexagonal lattice has its
+    // row spacing along floor and ceiling. Along the sides its rows alternate between two
+    // depths, so the window spans two rows and weighs both kinds alike.
+    let a = match sim.scene().packing {
+        crate::scene::Packing::Square => {
+            let length = ((hi - lo) * tangent).abs().max_element();
+            length / (length / d).round().max(1.0)
+        }
+        crate::scene::Packing::Hexagonal if normal.y != 0.0 => {
+            crate::packing::ROW_SPACING as f32 * d
+        }
+        crate::scene::Packing::Hexagonal => 2.0 * crate::packing::ROW_DISTANCE as f32 * d,
+    };
+    // The walls' share of the push, as the solver applies it: Akinci's wall feels the
+    // particle's own pressure once; the mirrored walls of the conjugate-gradient solve feel it
+    // twice, plus the hydrostatic part of the ghost pressure, g·(x_b − x_i)
+    // (`forces::non_pressure_accelerations`).
+    let (wall_weight, gravity) = if sim.conjugate_gradient() {
+        (crate::solver::MIRRORED_WALLS, sim.gravity())
+    } else {
+        (crate::solver::AKINCI_WALLS, Vec2::ZERO)
+    };
     let mass = sim.particle_mass() as f64;
     let push = pressure_pushes(sim);
     // The wall's particles under the sensor: tank body, behind the face, within a of the
@@ -284,14 +304,15 @@ pub fn wall_pressure_at(sim: &Simulation, x: Vec2, normal: Vec2) -> f64 {
         if (xi - x).length_squared() >= reach * reach {
             continue;
         }
-        let push_i = push(i);
-        if push_i == 0.0 {
+        let push_i = wall_weight * push(i);
+        if push_i == 0.0 && gravity == Vec2::ZERO {
             continue;
         }
         for &(xb, vb, weight) in &walls {
             let r = xi - xb;
             if r.length_squared() < h * h {
-                let force = vb * push_i * kernel.grad_w(r).dot(normal);
+                let push_ib = push_i + gravity.dot(xb - xi);
+                let force = vb * push_ib * kernel.grad_w(r).dot(normal);
                 reading += mass * (force * weight) as f64;
             }
         }

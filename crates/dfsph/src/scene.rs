@@ -27,8 +27,12 @@ pub struct Scene {
     /// The tank: an axis-aligned box whose interior holds the fluid; its walls are boundary
     /// particles sampled just outside the interior.
     pub tank: Tank,
-    /// Axis-aligned blocks of fluid, each filled with a square lattice of spacing d.
+    /// Axis-aligned blocks of fluid, each filled with the lattice `packing` names.
     pub fluid: Vec<FluidBlock>,
+    /// The lattice the fluid blocks and the tank's walls are sampled on: `square` (spacing d)
+    /// or `hexagonal` (the same area d² per particle; the packing that holds still under
+    /// pressure, see [`crate::packing`]).
+    pub packing: Packing,
     /// Static obstacles inside the tank, sampled as boundary particles.
     pub obstacles: Vec<Obstacle>,
     /// Pressure solver and its tolerances.
@@ -86,6 +90,31 @@ pub enum Obstacle {
     Polyline { points: Vec<Point> },
 }
 
+/// The lattice of the initial fluid particles and of the tank's walls.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Packing {
+    /// Particle centres at `min + d/2 + (i, j)·d` in each block; walls continue the lattice.
+    Square,
+    /// The hexagonal lattice of [`crate::packing`], anchored at the tank's lower-left corner;
+    /// walls are its sites outside the tank's interior.
+    Hexagonal,
+}
+
+/// How the DFSPH density solve solves its linear system.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PressureSolve {
+    /// The paper's Jacobi iteration with Akinci boundary terms, warm-started with half of the
+    /// previous step's pressure.
+    Jacobi,
+    /// Preconditioned conjugate gradients with the full previous pressure as the starting
+    /// guess, a stopping rule that sees momentum, walls that mirror the fluid's pressure with
+    /// its hydrostatic gradient, and a hydrostatic initial pressure ([`crate::density_cg`]).
+    /// Water at rest stays at rest.
+    ConjugateGradient,
+}
+
 /// Which pressure solver runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -102,6 +131,8 @@ pub enum Method {
 pub struct SolverParams {
     /// `dfsph` or `wcsph`.
     pub method: Method,
+    /// DFSPH density solve: `jacobi` or `conjugate_gradient`.
+    pub pressure_solve: PressureSolve,
     /// DFSPH density solve: stop when the *average* relative density error is at most this,
     /// in percent.
     pub density_tolerance_pct: f64,
@@ -165,6 +196,7 @@ impl Default for Scene {
                 max: [1.0, 2.0],
                 velocity: [0.0, 0.0],
             }],
+            packing: Packing::Square,
             obstacles: Vec::new(),
             solver: SolverParams::default(),
             time_step: TimeStepParams::default(),
@@ -179,6 +211,7 @@ impl Default for SolverParams {
     fn default() -> Self {
         Self {
             method: Method::Dfsph,
+            pressure_solve: PressureSolve::Jacobi,
             density_tolerance_pct: 0.05,
             divergence_tolerance_pct: 0.1,
             min_iterations: 2,
@@ -307,8 +340,21 @@ impl Scene {
     pub fn fluid_particle_count(&self) -> usize {
         self.fluid
             .iter()
-            .map(|b| {
-                self.lattice_count(b.max[0] - b.min[0]) * self.lattice_count(b.max[1] - b.min[1])
+            .map(|b| match self.packing {
+                Packing::Square => {
+                    self.lattice_count(b.max[0] - b.min[0])
+                        * self.lattice_count(b.max[1] - b.min[1])
+                }
+                Packing::Hexagonal => crate::packing::rows(
+                    self.tank.min,
+                    b.min,
+                    b.max,
+                    self.spacing(),
+                    self.tank.edge_tolerance(),
+                )
+                .iter()
+                .map(|r| r.count)
+                .sum(),
             })
             .sum()
     }
@@ -644,6 +690,11 @@ pub const BUILTIN_SCENES: &[BuiltinScene] = &[
                 max: [2.0, 1.0],
                 velocity: [0.0, 0.0],
             }],
+            packing: Packing::Hexagonal,
+            solver: SolverParams {
+                pressure_solve: PressureSolve::ConjugateGradient,
+                ..SolverParams::default()
+            },
             ..Scene::default()
         },
     },
@@ -721,6 +772,43 @@ mod tests {
 
     fn err(text: &str) -> String {
         Scene::from_json(text).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn packing_and_pressure_solve_are_read_and_bad_values_named() {
+        let s = Scene::from_json(
+            r#"{"packing": "hexagonal", "solver": {"pressure_solve": "conjugate_gradient"}}"#,
+        )
+        .unwrap();
+        assert_eq!(s.packing, Packing::Hexagonal);
+        assert_eq!(s.solver.pressure_solve, PressureSolve::ConjugateGradient);
+        let d = Scene::default();
+        assert_eq!(
+            (d.packing, d.solver.pressure_solve),
+            (Packing::Square, PressureSolve::Jacobi)
+        );
+        let e = Scene::from_json(r#"{"packing": "triangular"}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`packing`") && e.contains("hexagonal"), "{e}");
+        let e = Scene::from_json(r#"{"solver": {"pressure_solve": "cg"}}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("solver.pressure_solve") && e.contains("conjugate_gradient"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_hexagonal_scene_counts_the_particles_it_creates() {
+        let mut s = builtin("hydrostatic").unwrap();
+        assert_eq!(s.packing, Packing::Hexagonal);
+        s.particle_radius = 0.02;
+        let n = crate::Simulation::new(&s).unwrap().fluid_count();
+        assert_eq!(n, s.fluid_particle_count());
+        // 2 m² of water at d² = 0.0016 m² per particle, less the rows the edges cut.
+        assert!((1200..=1270).contains(&n), "{n}");
     }
 
     #[test]

@@ -8,11 +8,13 @@ use serde::Serialize;
 use std::time::Instant;
 
 use crate::boundary::{self, Body, BodyId, BoundarySamples};
+use crate::density_cg::{self, CgScratch};
 use crate::forces::{self, PointerForce, Viscosity};
 use crate::kernel::CubicSpline;
 use crate::neighbors::{Grid, NeighborLists};
+use crate::packing;
 use crate::particles::{BoundaryParticles, FluidParticles, Scratch};
-use crate::scene::{Method, Obstacle, Scene, SceneError};
+use crate::scene::{Method, Obstacle, Packing, PressureSolve, Scene, SceneError};
 use crate::solver::{self, Neighborhood, PairCache, SolveLimits, SolveReport, SolverScratch};
 
 /// Diagnostics of one step.
@@ -87,6 +89,7 @@ pub struct Simulation {
     pair_cache: PairCache,
     scratch: Scratch,
     solver_scratch: SolverScratch,
+    cg_scratch: CgScratch,
     pub(crate) time: f64,
     pub(crate) step_count: u64,
     /// Δt of the previous step (the divergence solve measures its error over it).
@@ -129,7 +132,13 @@ impl Simulation {
         scene.validate()?;
         let d = scene.spacing() as f32;
         let kernel = CubicSpline::new(scene.support() as f32);
-        let volume = 1.0 / lattice_kernel_sum(&kernel, d);
+        let hexagonal = scene.packing == Packing::Hexagonal;
+        let volume = 1.0
+            / if hexagonal {
+                packing::kernel_sum(&kernel, d)
+            } else {
+                lattice_kernel_sum(&kernel, d)
+            };
         let mut sim = Simulation {
             scene: scene.clone(),
             kernel,
@@ -150,6 +159,7 @@ impl Simulation {
             pair_cache: PairCache::default(),
             scratch: Scratch::default(),
             solver_scratch: SolverScratch::default(),
+            cg_scratch: Default::default(),
             time: 0.0,
             step_count: 0,
             last_dt: scene.time_step.max as f32,
@@ -165,7 +175,11 @@ impl Simulation {
             shake_drive: 0.0,
         };
         let mut samples = BoundarySamples::default();
-        samples.add_tank(to_vec2(scene.tank.min), to_vec2(scene.tank.max), d, 0);
+        if hexagonal {
+            samples.add_hexagonal_tank(scene.tank.min, scene.tank.max, scene.spacing(), 0);
+        } else {
+            samples.add_tank(to_vec2(scene.tank.min), to_vec2(scene.tank.max), d, 0);
+        }
         sim.bodies.push(Body::default());
         let tank_samples = samples.positions.len();
         for obstacle in &scene.obstacles {
@@ -195,7 +209,24 @@ impl Simulation {
             });
             inside_box || obstacle_grid.any_near(p)
         };
-        for block in &scene.fluid {
+        for block in scene.fluid.iter().filter(|_| hexagonal) {
+            let v = to_vec2(block.velocity);
+            let tolerance = scene.tank.edge_tolerance();
+            for p in packing::sites(
+                scene.tank.min,
+                block.min,
+                block.max,
+                scene.spacing(),
+                tolerance,
+            ) {
+                if !covered(p) {
+                    let id = sim.next_id;
+                    sim.next_id += 1;
+                    sim.fluid.push(p, v, id);
+                }
+            }
+        }
+        for block in scene.fluid.iter().filter(|_| !hexagonal) {
             let nx = scene.lattice_count(block.max[0] - block.min[0]);
             let ny = scene.lattice_count(block.max[1] - block.min[1]);
             let v = to_vec2(block.velocity);
@@ -215,6 +246,12 @@ impl Simulation {
             }
         }
         sim.add_boundary_samples(samples);
+        if sim.conjugate_gradient() {
+            // The solve's starting guess for the first step: water at rest then starts in
+            // equilibrium instead of falling into its bottom rows while the pressure builds up.
+            sim.fluid.pressure_over_rho0 =
+                hydrostatic_pressure(&sim.fluid.position, sim.gravity, d);
+        }
         sim.update_neighborhoods();
         Ok(sim)
     }
@@ -238,6 +275,13 @@ impl Simulation {
             self.boundary.body.push(b);
         }
         self.boundary_changed = true;
+    }
+
+    /// Whether the density solve is [`PressureSolve::ConjugateGradient`] (with its mirrored,
+    /// hydrostatic walls), rather than the paper's Jacobi iteration with Akinci walls.
+    pub fn conjugate_gradient(&self) -> bool {
+        let solver = &self.scene.solver;
+        solver.method == Method::Dfsph && solver.pressure_solve == PressureSolve::ConjugateGradient
     }
 
     /// Sort both particle sets, rebuild neighbour lists, densities and factors.
@@ -274,6 +318,11 @@ impl Simulation {
             .neighbor_lists(&self.fluid.position, true, &mut self.fluid_lists);
         self.boundary_grid
             .neighbor_lists(&self.fluid.position, false, &mut self.boundary_lists);
+        let wall_weight = if self.conjugate_gradient() {
+            solver::MIRRORED_WALLS
+        } else {
+            solver::AKINCI_WALLS
+        };
         solver::density_and_factor(
             &self.kernel,
             self.volume,
@@ -283,6 +332,7 @@ impl Simulation {
             &self.boundary_lists,
             &mut self.pair_cache,
             self.max_factor,
+            wall_weight,
         );
     }
 
@@ -322,6 +372,7 @@ impl Simulation {
         let p = &self.scene.solver;
         let method = p.method;
         let warm = p.warm_start;
+        let conjugate_gradient = self.conjugate_gradient();
         let divergence = p.divergence_solve;
         let density_limits = SolveLimits {
             tolerance_pct: p.density_tolerance_pct,
@@ -375,6 +426,7 @@ impl Simulation {
                 self.gravity,
                 viscosity,
                 self.pointer,
+                conjugate_gradient,
                 &mut self.fluid,
                 &self.boundary,
                 &nb,
@@ -387,6 +439,22 @@ impl Simulation {
                 .for_each(|(v, &a)| *v += dt * a);
 
             let report = match method {
+                Method::Dfsph if conjugate_gradient => density_cg::density_solve(
+                    self.volume,
+                    dt,
+                    solver::max_compression_correction(dt, self.spacing),
+                    warm,
+                    &mut self.fluid,
+                    &nb,
+                    density_limits,
+                    density_cg::velocity_tolerance(
+                        p.density_tolerance_pct,
+                        self.spacing,
+                        self.gravity.length(),
+                        dt,
+                    ),
+                    &mut self.cg_scratch,
+                ),
                 Method::Dfsph => solver::density_solve(
                     self.volume,
                     dt,
@@ -434,7 +502,11 @@ impl Simulation {
                         &self.fluid,
                         &self.boundary,
                         &nb,
-                        self.solver_scratch.density_rates(),
+                        if conjugate_gradient {
+                            &self.cg_scratch.rate
+                        } else {
+                            self.solver_scratch.density_rates()
+                        },
                     ) as f64
             } else {
                 0.0
@@ -901,6 +973,36 @@ pub fn lattice_kernel_sum(kernel: &CubicSpline, d: f32) -> f32 {
         }
     }
     sum as f32
+}
+
+/// p/ρ0 of fluid at rest under `gravity` (pointing down the y axis; zero otherwise):
+/// `|g|·(y_s − y)`, where the free surface `y_s` lies half a spacing above the top particle of
+/// the unbroken run of particles above each particle in its column of width `d` (a gap of more
+/// than 2.5 spacings, wider than the hexagonal lattice's two rows, breaks a run: a drop above a
+/// pool does not weigh on it).
+pub fn hydrostatic_pressure(position: &[Vec2], gravity: Vec2, d: f32) -> Vec<f32> {
+    let mut out = vec![0.0; position.len()];
+    if gravity.x != 0.0 || gravity.y >= 0.0 {
+        return out;
+    }
+    let mut columns = std::collections::HashMap::<i64, Vec<usize>>::new();
+    for (i, p) in position.iter().enumerate() {
+        columns.entry((p.x / d).floor() as i64).or_default().push(i);
+    }
+    for (_, mut idx) in columns {
+        idx.sort_by(|&a, &b| position[b].y.total_cmp(&position[a].y));
+        let mut surface = f32::NAN;
+        let mut last = f32::INFINITY;
+        for i in idx {
+            let y = position[i].y;
+            if last - y > 2.5 * d {
+                surface = y + 0.5 * d;
+            }
+            last = y;
+            out[i] = -gravity.y * (surface - y);
+        }
+    }
+    out
 }
 
 pub(crate) fn to_vec2(p: [f64; 2]) -> Vec2 {

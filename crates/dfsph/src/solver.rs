@@ -82,6 +82,11 @@ impl<'a> Neighborhood<'a> {
 
 /// Compute `s_i`, the DFSPH factor, and cache all kernel gradients and the per-particle sums
 /// of [`PairCache`] (TVCG 2017, Alg. 1 lines 2–3).
+///
+/// `wall_weight` multiplies the walls' share of the gradient sum and of the wall flux, not of
+/// the density: 1 is Akinci et al.'s wall term ([`AKINCI_WALLS`]), 2 mirrors the fluid into the
+/// wall ([`MIRRORED_WALLS`]). The gradient sum serves the density rate, the pressure push and
+/// the factor alike, so either weight keeps the pressure operator symmetric.
 #[allow(clippy::too_many_arguments)]
 pub fn density_and_factor(
     kernel: &CubicSpline,
@@ -92,6 +97,7 @@ pub fn density_and_factor(
     boundary_lists: &NeighborLists,
     cache: &mut PairCache,
     max_factor: f32,
+    wall_weight: f32,
 ) {
     let n = fluid.len();
     cache.blocks.prepare(fluid_lists);
@@ -143,8 +149,8 @@ pub fn density_and_factor(
                         *g = grad;
                         let vb = bvol[b as usize];
                         density += vb * w;
-                        grad_sum += vb * grad;
-                        flux += vb * bvel[b as usize].dot(grad);
+                        grad_sum += wall_weight * vb * grad;
+                        flux += wall_weight * vb * bvel[b as usize].dot(grad);
                     }
                     let k = i - base;
                     s[k] = density;
@@ -160,6 +166,18 @@ pub fn density_and_factor(
             }
         });
 }
+
+/// Akinci et al. (2012)'s wall term: a wall particle feels the fluid particle's own pressure
+/// once, `Δv_i = −κ_i Σ_b Ψ_b ∇W_ib`.
+pub const AKINCI_WALLS: f32 = 1.0;
+
+/// Walls that mirror the fluid: the wall's share of the density is the mirrored fluid's
+/// (`Σ_b Ψ_b W_ib`), and its derivative, since the mirror image moves with the particle,
+/// counts twice, in the density rate, the pressure push (`p_b = p_i`: `κ_i + κ_b = 2κ_i`) and
+/// the factor. With it a particle next to a wall controls its own distance to the wall; with
+/// [`AKINCI_WALLS`] a particle on the lattice next to a wall does not (its gradient sums cancel,
+/// docs/deep-columns.md) and the fluid's pressure pushes it into the wall.
+pub const MIRRORED_WALLS: f32 = 2.0;
 
 /// The DFSPH factor of a particle inside an ideal square lattice of spacing `d` (its gradient
 /// sum vanishes by symmetry): `1 / Σ_k |V ∇W(x_k)|²`.
@@ -823,6 +841,7 @@ mod tests {
             &boundary_lists,
             &mut cache,
             f32::INFINITY,
+            AKINCI_WALLS,
         );
         Patch {
             kernel,
@@ -957,6 +976,7 @@ mod tests {
             &p.boundary_lists,
             &mut p.cache,
             f32::INFINITY,
+            AKINCI_WALLS,
         );
         let nb = Neighborhood::new(&p.fluid_lists, &p.boundary_lists, &p.cache);
         let rigid = check(&p, &nb, 1.0e-2);
@@ -1059,6 +1079,7 @@ mod tests {
             &p.boundary_lists,
             &mut portable,
             f32::INFINITY,
+            AKINCI_WALLS,
         );
         let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         let vbits = |v: &[Vec2]| {

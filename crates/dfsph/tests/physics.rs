@@ -47,56 +47,46 @@ fn fluid_starts_at_rest_density() {
 }
 
 #[test]
-fn hydrostatic_tank_settles_to_the_right_pressure() {
-    // 800 particles. The square lattice the fluid starts on rearranges into the hexagonal
-    // packing SPH prefers (neighbours per particle 9.5 -> 11.5); the sloshing that releases
-    // has died down well before 19 s.
+fn the_hydrostatic_tank_is_at_rest_from_the_first_step() {
+    // The built-in tank (hexagonal packing, conjugate-gradient pressure solve with mirrored,
+    // hydrostatic walls and a hydrostatic start), 777 particles, 1 m deep, for 10 s. The exact
+    // answer is no motion at all: no step may be faster than 1 % of sqrt(gH). (With the square
+    // lattice and the Jacobi solve the tank burst to 0.9 m/s and took 3–9.5 s to settle.)
     let s = coarse("hydrostatic", 0.025);
     let mut sim = Simulation::new(&s).unwrap();
     let n0 = sim.fluid_count();
     let (rho0, g, depth) = (1000.0f64, 9.81f64, 1.0f64);
     let d = s.spacing();
-    let mut energy_at_2s = None;
-    let mut max_speed_last_second = 0.0f64;
+    let limit = 0.01 * (g * depth).sqrt();
     // Pressure away from the walls and the free surface, against ρ0 g (H − y) at each
-    // particle's own height, averaged over bands 0.1 m (two spacings) high and over the last
-    // second (every 20th step) to remove particle noise.
+    // particle's own height (H the block's 1 m), averaged over bands 0.1 m (two spacings)
+    // high and over the last second (every 20th step).
     let mut bands = std::collections::BTreeMap::<i64, (f64, usize)>::new();
-    while sim.time() < 20.0 {
+    while sim.time() < 10.0 {
         let st = *sim.step();
-        if st.time >= 2.0 && energy_at_2s.is_none() {
-            energy_at_2s = Some(st.kinetic_energy);
-        }
-        if st.time >= 19.0 {
-            max_speed_last_second = max_speed_last_second.max(st.max_speed);
-            if st.step.is_multiple_of(20) {
-                let snap = sim.snapshot();
-                for (p, pr) in snap.position.iter().zip(&snap.pressure) {
-                    let (x, y) = (p.x as f64, p.y as f64);
-                    if x > 0.3 && x < 1.7 && y > 0.3 && y < 0.9 {
-                        let e = bands.entry((y / (2.0 * d)).floor() as i64).or_default();
-                        e.0 += *pr as f64 - rho0 * g * (depth - y);
-                        e.1 += 1;
-                    }
+        assert!(
+            st.max_speed < limit,
+            "{:.4} m/s at t = {:.3} s, 1 % of sqrt(gH) is {limit:.4}",
+            st.max_speed,
+            st.time
+        );
+        if st.time >= 9.0 && st.step.is_multiple_of(20) {
+            let snap = sim.snapshot();
+            for (p, pr) in snap.position.iter().zip(&snap.pressure) {
+                let (x, y) = (p.x as f64, p.y as f64);
+                if x > 0.3 && x < 1.7 && y > 0.3 && y < 0.9 {
+                    let e = bands.entry((y / (2.0 * d)).floor() as i64).or_default();
+                    e.0 += *pr as f64 - rho0 * g * (depth - y);
+                    e.1 += 1;
                 }
             }
         }
     }
     let stats = *sim.stats();
-    assert!(stats.avg_density_error_pct <= 0.1, "{stats:?}");
+    assert!(stats.avg_density_error_pct <= 0.05, "{stats:?}");
     assert_eq!(sim.total_clamped(), 0);
     assert_eq!(sim.total_non_finite(), 0);
     assert_eq!(sim.fluid_count(), n0);
-    let sqrt_gh = (g * depth).sqrt();
-    assert!(
-        max_speed_last_second < 0.01 * sqrt_gh,
-        "max speed over the last second {max_speed_last_second:.4} m/s, 1 % of sqrt(gH) is {:.4}",
-        0.01 * sqrt_gh
-    );
-    assert!(
-        stats.kinetic_energy < 0.1 * energy_at_2s.unwrap(),
-        "{stats:?}"
-    );
     assert!(bands.len() >= 5);
     for (band, (sum, count)) in bands {
         let error = sum / count as f64;
@@ -104,6 +94,48 @@ fn hydrostatic_tank_settles_to_the_right_pressure() {
             error.abs() < 0.02 * rho0 * g * depth,
             "band from y = {:.2} m: mean pressure error {error:.0} Pa",
             band as f64 * 2.0 * d
+        );
+    }
+}
+
+#[test]
+fn a_column_200_layers_deep_stays_at_rest() {
+    // 0.1 m x 1 m of water at d = 5 mm (3,978 particles, 200 layers) between two walls, with
+    // the conjugate-gradient pressure solve on the hexagonal packing. Every step stays under
+    // 1 % of sqrt(gH) (measured: 0.012 m/s, against 0.031), and the pressure in bands 0.1 m
+    // high is within 3 % of ρ0·g·H of ρ0·g·(H − y) (measured: +0.5 to +2.9 %).
+    let s = Scene::from_json(
+        r#"{"particle_radius": 0.0025, "tank": {"min": [0, 0], "max": [0.1, 1.25]},
+            "fluid": [{"min": [0, 0], "max": [0.1, 1.0]}],
+            "packing": "hexagonal", "solver": {"pressure_solve": "conjugate_gradient"}}"#,
+    )
+    .unwrap();
+    let (rho0, g, depth) = (1000.0f64, 9.81f64, 1.0f64);
+    let limit = 0.01 * (g * depth).sqrt();
+    let mut sim = Simulation::new(&s).unwrap();
+    while sim.time() < 0.3 {
+        let st = *sim.step();
+        assert_eq!(st.clamped + st.non_finite, 0, "{st:?}");
+        assert!(st.max_speed < limit, "{st:?}");
+    }
+    let snap = sim.snapshot();
+    let mut bands = std::collections::BTreeMap::<i64, (f64, usize)>::new();
+    for (p, pr) in snap.position.iter().zip(&snap.pressure) {
+        let y = p.y as f64;
+        if y < 0.9 {
+            let e = bands.entry((y / 0.1).floor() as i64).or_default();
+            e.0 += *pr as f64 - rho0 * g * (depth - y);
+            e.1 += 1;
+        }
+    }
+    assert_eq!(bands.len(), 9);
+    for (band, (sum, count)) in bands {
+        let error = sum / count as f64 / (rho0 * g * depth);
+        assert!(
+            error.abs() < 0.03,
+            "band from y = {:.1} m: mean pressure error {:.2} % of rho0 g H",
+            band as f64 * 0.1,
+            100.0 * error
         );
     }
 }
@@ -336,7 +368,7 @@ fn a_deep_column_at_the_benchmark_time_step_does_not_burst() {
 }
 
 #[test]
-#[ignore = "known failure, the target of the next solver work: see docs/deep-columns.md"]
+#[ignore = "known failure: 400 layers at d = 5 mm still burst, with either pressure solve; see docs/deep-columns.md"]
 fn a_deep_narrow_column_stays_at_rest() {
     // 20 x 400 particles (0.1 m x 2 m at d = 5 mm) at rest between two walls. The exact
     // answer is no motion at all. The Jacobi density solve cannot carry pressure up 400

@@ -1,0 +1,124 @@
+//! The hexagonal lattice that fluid blocks and tank walls are sampled on with
+//! `"packing": "hexagonal"` (see [`crate::scene::Packing`]).
+//!
+//! Why hexagonal. Under pressure a square lattice of SPH particles is not a stable
+//! arrangement: each particle sits on top of the one below, with no restoring force against
+//! sliding sideways into the gap, so a tank at rest rearranges itself into the hexagonal packing
+//! and sloshes for seconds while it does (docs/deep-columns.md). The hexagonal lattice is the
+//! packing pressure forces hold in place.
+//!
+//! The lattice has the same area per particle as the square lattice of spacing d, d², so the
+//! same volume of fluid holds the same number of particles: spacing `s = d·√(2/√3) ≈ 1.0746 d`
+//! along a row, rows `s·√3/2 ≈ 0.9306 d` apart, odd rows shifted by `s/2`. Its first row lies
+//! `d/2` above the anchor (the tank's lower-left corner) and even rows start `d/2` right of
+//! it. The tank's walls are the sites of the same lattice outside the tank's interior, so the
+//! fluid next to a wall sees the lattice continue (the wall is ragged by half a spacing along
+//! the sides).
+
+use glam::Vec2;
+
+/// Spacing along a row, in units of d: `√(2/√3)`.
+pub const ROW_SPACING: f64 = 1.074_569_931_823_542;
+/// Distance between rows, in units of d: `ROW_SPACING·√3/2`.
+pub const ROW_DISTANCE: f64 = 0.930_604_859_102_099_7;
+
+/// One row of lattice sites inside a box: `count` sites from `(x0, y)` in steps of the row
+/// spacing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Row {
+    pub y: f64,
+    pub x0: f64,
+    pub count: usize,
+}
+
+/// The rows of the hexagonal lattice of spacing `d` anchored at `anchor` that have sites in
+/// the closed box `[lo, hi]` (widened by `tolerance` on every side, for rounding in scene
+/// files).
+pub fn rows(anchor: [f64; 2], lo: [f64; 2], hi: [f64; 2], d: f64, tolerance: f64) -> Vec<Row> {
+    let (s, dy) = (ROW_SPACING * d, ROW_DISTANCE * d);
+    let (lo_x, lo_y) = (lo[0] - tolerance, lo[1] - tolerance);
+    let (hi_x, hi_y) = (hi[0] + tolerance, hi[1] + tolerance);
+    let first = anchor[1] + 0.5 * d;
+    let j0 = ((lo_y - first) / dy).ceil() as i64;
+    let j1 = ((hi_y - first) / dy).floor() as i64;
+    (j0..=j1)
+        .filter_map(|j| {
+            let y = first + j as f64 * dy;
+            let offset = anchor[0] + 0.5 * d + 0.5 * s * j.rem_euclid(2) as f64;
+            let i0 = ((lo_x - offset) / s).ceil() as i64;
+            let i1 = ((hi_x - offset) / s).floor() as i64;
+            (i1 >= i0).then(|| Row {
+                y,
+                x0: offset + i0 as f64 * s,
+                count: (i1 - i0 + 1) as usize,
+            })
+        })
+        .collect()
+}
+
+/// The sites of [`rows`], as positions.
+pub fn sites(anchor: [f64; 2], lo: [f64; 2], hi: [f64; 2], d: f64, tolerance: f64) -> Vec<Vec2> {
+    let s = ROW_SPACING * d;
+    rows(anchor, lo, hi, d, tolerance)
+        .into_iter()
+        .flat_map(|r| {
+            (0..r.count).map(move |i| Vec2::new((r.x0 + i as f64 * s) as f32, r.y as f32))
+        })
+        .collect()
+}
+
+/// `Σ_j W(x_i − x_j)` over the infinite hexagonal lattice of [`rows`] (the particle itself
+/// included): the reciprocal of the volume that puts the lattice at rest density.
+pub fn kernel_sum(kernel: &crate::kernel::CubicSpline, d: f32) -> f32 {
+    let (s, dy) = (ROW_SPACING as f32 * d, ROW_DISTANCE as f32 * d);
+    let reach = (kernel.support() / dy).ceil() as i32 + 1;
+    let mut sum = 0.0f64;
+    for j in -reach..=reach {
+        for i in -reach..=reach {
+            let x = (i as f32 + 0.5 * j.rem_euclid(2) as f32) * s;
+            sum += kernel.w(Vec2::new(x, j as f32 * dy).length()) as f64;
+        }
+    }
+    sum as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_constants_give_the_square_lattices_area_per_particle() {
+        assert!((ROW_SPACING * ROW_DISTANCE - 1.0).abs() < 1e-12);
+        assert!((ROW_DISTANCE / ROW_SPACING - 3f64.sqrt() / 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_block_holds_about_its_area_over_d_squared() {
+        let d = 0.02;
+        let n: usize = rows([0.0, 0.0], [0.0, 0.0], [1.0, 2.0], d, 1e-9)
+            .iter()
+            .map(|r| r.count)
+            .sum();
+        // 5,000 sites of area d² fill 2 m²; the edges cost at most a row and a column.
+        assert!((4850..=5050).contains(&n), "{n}");
+        let pts = sites([0.0, 0.0], [0.0, 0.0], [1.0, 2.0], d, 1e-9);
+        assert_eq!(pts.len(), n);
+        let (s, dy) = ((ROW_SPACING * d) as f32, (ROW_DISTANCE * d) as f32);
+        // Nearest neighbours one row spacing away, along the row and on the rows above.
+        let p = pts[60];
+        let mut near: Vec<f32> = pts
+            .iter()
+            .map(|q| (*q - p).length())
+            .filter(|&r| r > 0.0)
+            .collect();
+        near.sort_by(f32::total_cmp);
+        assert!(
+            (near[0] - s).abs() < 1e-5 && (near[5] - s).abs() < 1e-5,
+            "{near:?}"
+        );
+        assert!(pts
+            .iter()
+            .all(|q| q.x >= 0.0 && q.x <= 1.0 && q.y >= 0.0 && q.y <= 2.0));
+        assert!((pts[0].y - 0.5 * d as f32).abs() < 1e-6 && dy > 0.0);
+    }
+}
