@@ -1,0 +1,155 @@
+//! Water at rest, by hand: a column W m wide and H m deep filling a tank 1.25 H tall, at
+//! particle radius R, run for UNTIL seconds; EXTRA is appended to the scene's JSON object.
+//! Prints the largest speed, the solver's work and the particles' pressure against
+//! ρ0·g·(H − y) (the figures of docs/deep-columns.md), e.g.
+//!
+//! `cargo run --release -p dfsph --example column_at_rest -- 0.1 1 0.0025 0.3
+//!  ', "packing": "hexagonal", "solver": {"pressure_solve": "conjugate_gradient"}'`
+//!
+//! `PRINTS=N` sets the number of progress lines.
+use dfsph::{Scene, Simulation};
+fn main() {
+    let a: Vec<String> = std::env::args().collect();
+    if a.len() < 5 {
+        eprintln!("usage: column_at_rest W H R UNTIL [EXTRA-JSON]");
+        std::process::exit(2);
+    }
+    let (w, h, r, until): (f64, f64, f64, f64) = (
+        a[1].parse().unwrap(),
+        a[2].parse().unwrap(),
+        a[3].parse().unwrap(),
+        a[4].parse().unwrap(),
+    );
+    let extra = a.get(5).cloned().unwrap_or_default();
+    let s = Scene::from_json(&format!(
+        r#"{{"particle_radius": {r}, "tank": {{"min": [0, 0], "max": [{w}, {}]}},
+            "fluid": [{{"min": [0, 0], "max": [{w}, {h}]}}] {extra} }}"#,
+        h * 1.25
+    ))
+    .unwrap();
+    let mut sim = Simulation::new(&s).unwrap();
+    let d = 2.0 * r;
+    let t0 = std::time::Instant::now();
+    let mut vmax_all = 0.0f64;
+    let mut next = 0.0;
+    let mut its = 0u64;
+    let prints: f64 = std::env::var("PRINTS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(10.0);
+    {
+        let snap = sim.snapshot();
+        let top = snap.position.iter().map(|p| p.y).fold(0.0f32, f32::max) as f64 + r;
+        let (mut sum, mut mx, mut cnt) = (0.0f64, 0.0f64, 0);
+        for (p, pr) in snap.position.iter().zip(&snap.pressure) {
+            let (x, y) = (p.x as f64, p.y as f64);
+            if x > 3.0 * d && x < w - 3.0 * d && y > 3.0 * d && y < h - 3.0 * d {
+                let e = (*pr as f64 - 1000.0 * 9.81 * (top - y)) / (1000.0 * 9.81 * h);
+                sum += e;
+                mx = mx.max(e.abs());
+                cnt += 1;
+            }
+        }
+        println!(
+            "t=0 top={top:.4} p_err vs top: mean={:.4} max={:.4}",
+            sum / cnt.max(1) as f64,
+            mx
+        );
+    }
+    while sim.time() < until {
+        let st = *sim.step();
+        its += st.density_iterations as u64;
+        vmax_all = vmax_all.max(st.max_speed);
+        if st.time >= next || st.clamped + st.non_finite > 0 {
+            next += until / prints;
+            let snap = sim.snapshot();
+            let (mut sum, mut mx, mut cnt) = (0.0f64, 0.0f64, 0);
+            for (p, pr) in snap.position.iter().zip(&snap.pressure) {
+                let (x, y) = (p.x as f64, p.y as f64);
+                if x > 3.0 * d && x < w - 3.0 * d && y > 3.0 * d && y < h - 3.0 * d {
+                    let e = (*pr as f64 - 1000.0 * 9.81 * (h - y)) / (1000.0 * 9.81 * h);
+                    sum += e;
+                    mx = mx.max(e.abs());
+                    cnt += 1;
+                }
+            }
+            println!(
+                "t={:.3} dt={:.2e} it={} itv={} vmax={:.4} ke={:.3e} err={:.4}/{:.4} clamp={} p_err mean={:.4} max={:.4} (n={cnt}) wall={:.1}s",
+                st.time, st.dt, st.density_iterations, st.divergence_iterations, st.max_speed, st.kinetic_energy,
+                st.avg_density_error_pct, st.max_density_error_pct, sim.total_clamped(), sum / cnt.max(1) as f64, mx,
+                t0.elapsed().as_secs_f64()
+            );
+        }
+    }
+    let snap = sim.snapshot();
+    let heff = snap.position.len() as f64 * d * d / w;
+    let (mut sum, mut mx, mut cnt) = (0.0f64, 0.0f64, 0);
+    for (p, pr) in snap.position.iter().zip(&snap.pressure) {
+        let (x, y) = (p.x as f64, p.y as f64);
+        if x > 3.0 * d && x < w - 3.0 * d && y > 3.0 * d && y < heff - 3.0 * d {
+            let e = (*pr as f64 - 1000.0 * 9.81 * (heff - y)) / (1000.0 * 9.81 * heff);
+            sum += e;
+            mx = mx.max(e.abs());
+            cnt += 1;
+        }
+    }
+    let mut bands = std::collections::BTreeMap::<i64, (f64, f64, usize)>::new();
+    for (p, pr) in snap.position.iter().zip(&snap.pressure) {
+        let (x, y) = (p.x as f64, p.y as f64);
+        if x > 3.0 * d && x < w - 3.0 * d {
+            let e = bands.entry((10.0 * y / heff).floor() as i64).or_default();
+            let err = (*pr as f64 - 1000.0 * 9.81 * (heff - y)) / (1000.0 * 9.81 * heff);
+            e.0 += err;
+            e.1 = e.1.max(err.abs());
+            e.2 += 1;
+        }
+    }
+    for (b, (sum, mx, c)) in &bands {
+        println!(
+            "  band {b}: mean err {:.4} max {:.4} n={c}",
+            sum / *c as f64,
+            mx
+        );
+    }
+    let near_wall = snap
+        .position
+        .iter()
+        .zip(&snap.pressure)
+        .filter(|(p, _)| (p.x as f64) < 3.0 * d || (p.x as f64) > w - 3.0 * d)
+        .map(|(p, pr)| {
+            ((*pr as f64 - 1000.0 * 9.81 * (heff - p.y as f64)) / (1000.0 * 9.81 * heff)).abs()
+        })
+        .fold(0.0f64, f64::max);
+    println!("  near side walls: max err {near_wall:.4}");
+    println!(
+        "end: H_eff={heff:.4} p_err vs H_eff: mean={:.4} max={:.4} n={cnt}",
+        sum / cnt.max(1) as f64,
+        mx
+    );
+    let mut idx: Vec<usize> = (0..snap.position.len()).collect();
+    idx.sort_by(|&a, &b| {
+        snap.velocity[b]
+            .length()
+            .partial_cmp(&snap.velocity[a].length())
+            .unwrap()
+    });
+    for &i in idx.iter().take(6) {
+        println!(
+            "  fast: x={:.4} y={:.4} v={:?} rho={:.4} p={:.0}",
+            snap.position[i].x,
+            snap.position[i].y,
+            snap.velocity[i],
+            snap.density[i],
+            snap.pressure[i]
+        );
+    }
+    println!(
+        "n={} steps={} vmax_all={:.4} (1% sqrt(gH)={:.4}) mean its={:.1} wall={:.1}s",
+        snap.position.len(),
+        sim.stats().step,
+        vmax_all,
+        0.01 * (9.81 * h).sqrt(),
+        its as f64 / sim.stats().step as f64,
+        t0.elapsed().as_secs_f64()
+    );
+}
