@@ -6,7 +6,8 @@
 //! `cargo run --release -p dfsph --example column_at_rest -- 0.1 1 0.0025 0.3
 //!  ', "packing": "hexagonal", "solver": {"pressure_solve": "conjugate_gradient"}'`
 //!
-//! `PRINTS=N` sets the number of progress lines.
+//! `PRINTS=N` sets the number of progress lines; `SPIKES=1` prints every step faster than
+//! 0.02 m/s with its fastest particle.
 use dfsph::{Scene, Simulation};
 fn main() {
     let a: Vec<String> = std::env::args().collect();
@@ -60,6 +61,20 @@ fn main() {
         let st = *sim.step();
         its += st.density_iterations as u64;
         vmax_all = vmax_all.max(st.max_speed);
+        if st.max_speed > 0.02 && std::env::var("SPIKES").is_ok() {
+            let snap = sim.snapshot();
+            let i = (0..snap.position.len())
+                .max_by(|&a, &b| {
+                    snap.velocity[a]
+                        .length()
+                        .total_cmp(&snap.velocity[b].length())
+                })
+                .unwrap();
+            println!(
+                "  spike t={:.4} v={:.4} at {:?} rho={:.1} it={}",
+                st.time, st.max_speed, snap.position[i], snap.density[i], st.density_iterations
+            );
+        }
         if st.time >= next || st.clamped + st.non_finite > 0 {
             next += until / prints;
             let snap = sim.snapshot();
@@ -121,6 +136,17 @@ fn main() {
         })
         .fold(0.0f64, f64::max);
     println!("  near side walls: max err {near_wall:.4}");
+    let interior: Vec<f64> = snap
+        .position
+        .iter()
+        .zip(&snap.density)
+        .filter(|(p, _)| (p.y as f64) < heff - 4.0 * r)
+        .map(|(_, &rho)| (rho as f64 / 1000.0 - 1.0).abs() * 100.0)
+        .collect();
+    println!(
+        "  mean |rho/rho0 - 1| more than h below the surface: {:.3} %",
+        interior.iter().sum::<f64>() / interior.len().max(1) as f64
+    );
     println!(
         "end: H_eff={heff:.4} p_err vs H_eff: mean={:.4} max={:.4} n={cnt}",
         sum / cnt.max(1) as f64,
