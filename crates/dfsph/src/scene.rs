@@ -244,6 +244,21 @@ impl Default for ViscosityParams {
     }
 }
 
+/// Range of `rest_density`, kg/m³: every liquid lies within it (liquid hydrogen 71, mercury
+/// 13,534), and particle masses and pressures stay far from f32's limits.
+pub const MIN_REST_DENSITY: f64 = 10.0;
+/// See [`MIN_REST_DENSITY`].
+pub const MAX_REST_DENSITY: f64 = 100_000.0;
+
+/// Fastest initial speed of a fluid block, m/s. A 3 m dam break reaches about 8 m/s; the CFL
+/// step is `λ·d/v`, so a block thrown at 1e30 m/s would take steps of 1e-32 s (clamped to the
+/// minimum and leaking through every wall).
+pub const MAX_INITIAL_SPEED: f64 = 100.0;
+
+/// Largest kinematic viscosity, m²/s: 100 times honey. The explicit viscosity limits the step
+/// to 0.125·d²/ν (12.5 µs at d = 1 cm and 1 m²/s), so much more would never finish.
+pub const MAX_KINEMATIC_VISCOSITY: f64 = 1.0;
+
 /// Most fluid blocks a scene may have. Checking that blocks do not overlap compares each with
 /// the blocks beside it along x, which for blocks stacked in one column is every pair: 20,000
 /// blocks took 2 s; at this bound it stays under half a second.
@@ -424,6 +439,16 @@ impl Scene {
 
         positive("particle_radius", self.particle_radius)?;
         positive("rest_density", self.rest_density)?;
+        if !(MIN_REST_DENSITY..=MAX_REST_DENSITY).contains(&self.rest_density) {
+            return Err(invalid(
+                "rest_density",
+                format!(
+                    "{} kg/m³ is outside {MIN_REST_DENSITY}–{MAX_REST_DENSITY} kg/m³ (every \
+                     liquid lies within it: liquid hydrogen 71, mercury 13,534)",
+                    self.rest_density
+                ),
+            ));
+        }
         point("gravity", self.gravity)?;
         if self.gravity[0].hypot(self.gravity[1]) > 1000.0 {
             return Err(invalid(
@@ -489,6 +514,16 @@ impl Scene {
             point(&format!("{key}.min"), b.min)?;
             point(&format!("{key}.max"), b.max)?;
             point(&format!("{key}.velocity"), b.velocity)?;
+            let speed = b.velocity[0].hypot(b.velocity[1]);
+            if speed > MAX_INITIAL_SPEED {
+                return Err(invalid(
+                    format!("{key}.velocity"),
+                    format!(
+                        "{speed} m/s is faster than {MAX_INITIAL_SPEED} m/s (a 3 m dam break \
+                         reaches 8 m/s; the CFL step shrinks with the speed)"
+                    ),
+                ));
+            }
             for axis in 0..2 {
                 if b.max[axis] <= b.min[axis] {
                     return Err(invalid(
@@ -671,6 +706,21 @@ impl Scene {
             finite(key, val)?;
             if val < 0.0 {
                 return Err(invalid(key, format!("must not be negative, got {val}")));
+            }
+        }
+        for (key, val) in [
+            ("viscosity.kinematic", v.kinematic),
+            ("viscosity.boundary_kinematic", v.boundary_kinematic),
+        ] {
+            if val > MAX_KINEMATIC_VISCOSITY {
+                return Err(invalid(
+                    key,
+                    format!(
+                        "{val} m²/s is more than {MAX_KINEMATIC_VISCOSITY} m²/s (100 times \
+                         honey; the explicit viscosity caps the step at 0.125·d²/ν, 12.5 µs at \
+                         d = 1 cm and 1 m²/s)"
+                    ),
+                ));
             }
         }
         if v.xsph > 1.0 {
@@ -973,6 +1023,20 @@ mod tests {
             (
                 "{\"viscosity\": {\"kinematic\": -1e-6}}",
                 "viscosity.kinematic",
+            ),
+            ("{\"rest_density\": 1e-300}", "rest_density"),
+            ("{\"rest_density\": 1e300}", "rest_density"),
+            (
+                "{\"fluid\": [{\"min\": [0, 0], \"max\": [1, 1], \"velocity\": [1e30, 0]}]}",
+                "fluid[0].velocity",
+            ),
+            (
+                "{\"viscosity\": {\"kinematic\": 1e6}}",
+                "viscosity.kinematic",
+            ),
+            (
+                "{\"viscosity\": {\"boundary_kinematic\": 2}}",
+                "viscosity.boundary_kinematic",
             ),
             ("{\"gravity\": [0]}", "gravity"),
             ("{\"gravity\": [0, -1e20]}", "gravity"),
