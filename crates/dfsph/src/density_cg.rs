@@ -41,10 +41,10 @@
 use glam::Vec2;
 use rayon::prelude::*;
 
-use crate::blocked::{ResidualTerms, LANES};
 use crate::parallel::LIGHT_PASS_MIN_ITEMS;
 use crate::particles::FluidParticles;
-use crate::solver::{Neighborhood, SolveLimits, SolveReport};
+use crate::reduce;
+use crate::solver::{apply_pressure, density_rates_into, Neighborhood, SolveLimits, SolveReport};
 
 /// A particle this far (relative) below ρ0 is at the free surface. The row below a free
 /// surface has its full neighbourhood (the support is two spacings); the surface row misses
@@ -87,48 +87,8 @@ pub struct CgScratch {
     pub rate: Vec<f32>,
 }
 
-#[allow(clippy::too_many_arguments)]
-fn rates_into(
-    volume: f32,
-    vel: &[Vec2],
-    nb: &Neighborhood,
-    wall_flux: &[f32],
-    zeros: &[f32],
-    unused: &mut [f32],
-    out: &mut [f32],
-) {
-    let terms = ResidualTerms {
-        volume,
-        grad_sum: nb.grad_sum,
-        wall_flux,
-        source: zeros,
-        rate_scale: 1.0,
-        factor: zeros,
-        increment_scale: 0.0,
-    };
-    out.par_chunks_mut(LANES)
-        .zip(unused.par_chunks_mut(LANES))
-        .enumerate()
-        .for_each(|(b, (r, d))| {
-            nb.blocks
-                .residual_block(b, vel, &terms, d, r, &mut [0.0; LANES]);
-        });
-}
-
-fn apply(volume: f32, kappa: &[f32], vel: &mut [Vec2], nb: &Neighborhood) {
-    vel.par_chunks_mut(LANES).enumerate().for_each(|(b, v)| {
-        nb.blocks
-            .apply_block(b, volume, kappa, nb.grad_sum, v, None)
-    });
-}
-
 fn dot3(a: &[f32], b: &[f32], m: &[f32]) -> f64 {
-    a.par_iter()
-        .zip(b.par_iter())
-        .zip(m.par_iter())
-        .with_min_len(LIGHT_PASS_MIN_ITEMS)
-        .map(|((&a, &b), &m)| a as f64 * b as f64 * m as f64)
-        .sum()
+    reduce::sum_and_max_of(a.len(), |i| a[i] as f64 * b[i] as f64 * m[i] as f64).0
 }
 
 /// Density solve by preconditioned conjugate gradients. Leaves the step's p/ρ0 in
@@ -174,8 +134,8 @@ pub fn density_solve(
                 0.0
             };
         });
-    apply(volume, &total, &mut fluid.velocity, nb);
-    rates_into(
+    apply_pressure(volume, &total, &mut fluid.velocity, nb);
+    density_rates_into(
         volume,
         &fluid.velocity,
         nb,
@@ -199,15 +159,7 @@ pub fn density_solve(
             *a = if on && factor[i] > 0.0 { 1.0 } else { 0.0 };
         });
     let errors = |e: &[f32], active: &[f32]| -> (f64, f64) {
-        let (sum, max) = e
-            .par_iter()
-            .zip(active.par_iter())
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .map(|(&e, &a)| {
-                let c = (a * e).abs() as f64;
-                (c, c)
-            })
-            .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));
+        let (sum, max) = reduce::sum_and_max_of(n, |i| (active[i] * e[i]).abs() as f64);
         (sum / n as f64 * 100.0, max * 100.0)
     };
     let precondition = 1.0 / dt;
@@ -242,8 +194,8 @@ pub fn density_solve(
             .dir_velocity
             .par_iter_mut()
             .for_each(|v| *v = Vec2::ZERO);
-        apply(volume, &scratch.direction, &mut scratch.dir_velocity, nb);
-        rates_into(
+        apply_pressure(volume, &scratch.direction, &mut scratch.dir_velocity, nb);
+        density_rates_into(
             volume,
             &scratch.dir_velocity,
             nb,
@@ -283,12 +235,10 @@ pub fn density_solve(
             .with_min_len(LIGHT_PASS_MIN_ITEMS)
             .for_each(|(e, &q)| *e += alpha * dt * q);
         let (active, residual) = (&scratch.active, &scratch.residual);
-        let rz_new: f64 = residual
-            .par_iter()
-            .enumerate()
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .map(|(i, &r)| (active[i] * factor[i] * precondition * r) as f64 * r as f64)
-            .sum();
+        let rz_new = reduce::sum_and_max_of(n, |i| {
+            (active[i] * factor[i] * precondition * residual[i]) as f64 * residual[i] as f64
+        })
+        .0;
         let beta = (rz_new / rz) as f32;
         rz = rz_new;
         scratch

@@ -92,6 +92,22 @@ pub fn sum_and_max<T: Sync>(items: &[T], value: impl Fn(&T) -> f64 + Sync) -> (f
     }))
 }
 
+/// `Σ_i value(i)` and `max_i value(i)` over `0..n` (0 when empty), the same bits for any
+/// thread count and any work split: [`sum_and_max`] for values computed from an index (several
+/// arrays at once).
+pub fn sum_and_max_of(n: usize, value: impl Fn(usize) -> f64 + Sync) -> (f64, f64) {
+    let per_part = part_units(n, 1024);
+    let parts = (0..n.div_ceil(per_part))
+        .into_par_iter()
+        .with_min_len(LIGHT_PASS_MIN_ITEMS.div_ceil(per_part));
+    combine_in_order(parts.map(|p| {
+        (p * per_part..((p + 1) * per_part).min(n)).fold((0.0, 0.0), |acc, i| {
+            let v = value(i);
+            add_sum_max(acc, (v, v))
+        })
+    }))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -101,6 +117,26 @@ mod tests {
         (0..n)
             .map(|i| ((i * 7919) % 1009) as f64 / 1009.0 + 1.0 / 3.0)
             .collect()
+    }
+
+    #[test]
+    fn sum_and_max_of_indices_matches_sum_and_max_bit_for_bit() {
+        let values = awkward(100_003);
+        let by_index = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| sum_and_max_of(values.len(), |i| values[i]))
+        };
+        let direct = sum_and_max(&values, |&v| v);
+        for threads in [1, 2, 3, 8] {
+            let (sum, max) = by_index(threads);
+            assert_eq!(
+                (sum.to_bits(), max.to_bits()),
+                (direct.0.to_bits(), direct.1.to_bits())
+            );
+        }
     }
 
     #[test]

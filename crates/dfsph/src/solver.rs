@@ -227,25 +227,47 @@ fn split_by_chunk<'a, T>(values: &'a mut [T], lists: &NeighborLists) -> Vec<&'a 
 pub fn density_rates(volume: f32, vel: &[Vec2], nb: &Neighborhood) -> Vec<f32> {
     let n = vel.len();
     let (zeros, mut unused) = (vec![0.0f32; n], vec![0.0f32; n]);
+    let mut rates = vec![0.0f32; n];
+    density_rates_into(
+        volume,
+        vel,
+        nb,
+        nb.wall_flux,
+        &zeros,
+        &mut unused,
+        &mut rates,
+    );
+    rates
+}
+
+/// [`density_rates`] into `out`, with the walls' share `wall_flux` (`nb.wall_flux`, or zeros
+/// for the rates a velocity change alone causes), `zeros` holding n zeros and `unused` n
+/// scratch values.
+pub fn density_rates_into(
+    volume: f32,
+    vel: &[Vec2],
+    nb: &Neighborhood,
+    wall_flux: &[f32],
+    zeros: &[f32],
+    unused: &mut [f32],
+    out: &mut [f32],
+) {
     let terms = ResidualTerms {
         volume,
         grad_sum: nb.grad_sum,
-        wall_flux: nb.wall_flux,
-        source: &zeros,
+        wall_flux,
+        source: zeros,
         rate_scale: 1.0,
-        factor: &zeros,
+        factor: zeros,
         increment_scale: 0.0,
     };
-    let mut rates = vec![0.0f32; n];
-    rates
-        .par_chunks_mut(LANES)
+    out.par_chunks_mut(LANES)
         .zip(unused.par_chunks_mut(LANES))
         .enumerate()
         .for_each(|(b, (r, d))| {
             nb.blocks
                 .residual_block(b, vel, &terms, d, r, &mut [0.0; LANES]);
         });
-    rates
 }
 
 /// Apply `Δv_i = −Σ_j V_j (κ_i + κ_j) ∇W_ij − κ_i Σ_b Ψ_b ∇W_ib` to every fluid velocity,
