@@ -10,8 +10,10 @@ use dfsph::recording::{fingerprint_hex, Entry, Recording};
 use dfsph::{Action, Scene, Simulation};
 
 use crate::run::{self, Driver, RunOutcome, RunPlan};
+use crate::scene_arg::{read_input_file, InputRefusal};
 
-/// Recordings larger than this are refused unread (a long viewer session is a few MB).
+/// Recordings larger than this are refused, and no more than this is ever read, whatever the
+/// file claims (a long viewer session is a few MB; docs/recording.md).
 const MAX_RECORDING_BYTES: u64 = 256 * 1024 * 1024;
 
 /// Read and check the recording at `path` for a run of `scene` (named `scene_arg` on the
@@ -19,22 +21,20 @@ const MAX_RECORDING_BYTES: u64 = 256 * 1024 * 1024;
 /// description and particle budget. Every failure is one line naming the file.
 pub fn load(path: &Path, scene_arg: &str, scene: &Scene) -> Result<Recording, String> {
     let shown = path.display();
-    let meta = std::fs::metadata(path).map_err(|e| match e.kind() {
-        std::io::ErrorKind::NotFound => format!("recording `{shown}` does not exist"),
-        _ => format!("cannot read recording `{shown}`: {e}"),
-    })?;
-    if meta.is_dir() {
-        return Err(format!(
+    let bytes = read_input_file(path, MAX_RECORDING_BYTES).map_err(|refusal| match refusal {
+        InputRefusal::Missing => format!("recording `{shown}` does not exist"),
+        InputRefusal::Directory => format!(
             "`{shown}` is a directory, not a recording (a file from `view --record` or `stress --record`)"
-        ));
-    }
-    if meta.len() > MAX_RECORDING_BYTES {
-        return Err(format!(
-            "recording `{shown}` is {} bytes, more than the {MAX_RECORDING_BYTES} a recording may have",
-            meta.len()
-        ));
-    }
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read recording `{shown}`: {e}"))?;
+        ),
+        InputRefusal::NotRegular => format!(
+            "recording `{shown}` is not a regular file (a FIFO, socket or device); a recording is \
+             a file from `view --record` or `stress --record`"
+        ),
+        InputRefusal::TooLarge => format!(
+            "recording `{shown}` has more than the {MAX_RECORDING_BYTES} bytes a recording may have"
+        ),
+        InputRefusal::Io(e) => format!("cannot read recording `{shown}`: {e}"),
+    })?;
     let text = String::from_utf8(bytes)
         .map_err(|_| format!("recording `{shown}` is not UTF-8 text (expected JSON lines)"))?;
     let recording = Recording::parse(&text).map_err(|e| format!("recording `{shown}`: {e}"))?;

@@ -18,37 +18,27 @@ pub fn load_scene(arg: &str) -> Result<Scene, String> {
     }
     let path = Path::new(arg);
     let shown = path.display();
-    let meta = match std::fs::metadata(path) {
-        Ok(meta) => meta,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            return Err(if looks_like_a_name(arg) {
+    let bytes = read_input_file(path, MAX_SCENE_BYTES).map_err(|refusal| match refusal {
+        InputRefusal::Missing => {
+            if looks_like_a_name(arg) {
                 format!(
                     "unknown scene `{arg}`: not a built-in scene ({}) and no such file",
                     builtin_names()
                 )
             } else {
                 format!("scene file `{shown}` does not exist")
-            });
+            }
         }
-        Err(e) => return Err(format!("cannot read scene file `{shown}`: {e}")),
-    };
-    if meta.is_dir() {
-        return Err(format!(
+        InputRefusal::Directory => format!(
             "`{shown}` is a directory, not a scene file (expected a .json file or one of: {})",
             builtin_names()
-        ));
-    }
-    if !meta.is_file() {
-        return Err(format!("`{shown}` is not a regular file"));
-    }
-    if meta.len() > MAX_SCENE_BYTES {
-        return Err(format!(
-            "scene file `{shown}` is {} bytes, too large to be a scene (at most {MAX_SCENE_BYTES})",
-            meta.len()
-        ));
-    }
-    let bytes =
-        std::fs::read(path).map_err(|e| format!("cannot read scene file `{shown}`: {e}"))?;
+        ),
+        InputRefusal::NotRegular => format!("`{shown}` is not a regular file"),
+        InputRefusal::TooLarge => format!(
+            "scene file `{shown}` is too large to be a scene (more than {MAX_SCENE_BYTES} bytes)"
+        ),
+        InputRefusal::Io(e) => format!("cannot read scene file `{shown}`: {e}"),
+    })?;
     let text = String::from_utf8(bytes)
         .map_err(|_| format!("scene file `{shown}` is not UTF-8 text (expected a JSON scene)"))?;
     let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
@@ -56,6 +46,84 @@ pub fn load_scene(arg: &str) -> Result<Scene, String> {
         .map_err(|e| format!("scene file `{shown}`: {}", one_line(&e.to_string())))?;
     name_after_file(&mut scene, text, path);
     Ok(scene)
+}
+
+/// Why [`read_input_file`] did not return a file's bytes.
+#[derive(Debug)]
+pub enum InputRefusal {
+    /// No such file.
+    Missing,
+    /// A directory.
+    Directory,
+    /// A FIFO, socket or device (`/dev/zero`, `/dev/stdin`): reading one can block for ever
+    /// or never end.
+    NotRegular,
+    /// More bytes than the limit.
+    TooLarge,
+    /// Any other I/O error.
+    Io(std::io::Error),
+}
+
+/// The bytes of the regular file at `path`, at most `limit` of them. The file type is checked
+/// before the file is opened, and again on the open file (opened non-blocking, so a FIFO put
+/// in its place meanwhile cannot block the open), and at most `limit + 1` bytes are read
+/// whatever the file's reported length: a FIFO blocked the scene or recording loader for ever
+/// and `/dev/zero` (length 0) was read until memory ran out.
+pub fn read_input_file(path: &Path, limit: u64) -> Result<Vec<u8>, InputRefusal> {
+    use std::io::Read;
+    let kind = |meta: &std::fs::Metadata| {
+        if meta.is_dir() {
+            Err(InputRefusal::Directory)
+        } else if !meta.is_file() {
+            Err(InputRefusal::NotRegular)
+        } else if meta.len() > limit {
+            Err(InputRefusal::TooLarge)
+        } else {
+            Ok(())
+        }
+    };
+    let meta = std::fs::metadata(path).map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound => InputRefusal::Missing,
+        _ => InputRefusal::Io(e),
+    })?;
+    kind(&meta)?;
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NONBLOCK);
+    }
+    let file = options.open(path).map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound => InputRefusal::Missing,
+        _ => InputRefusal::Io(e),
+    })?;
+    kind(&file.metadata().map_err(InputRefusal::Io)?)?;
+    let mut bytes = Vec::new();
+    file.take(limit.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(InputRefusal::Io)?;
+    if bytes.len() as u64 > limit {
+        return Err(InputRefusal::TooLarge);
+    }
+    Ok(bytes)
+}
+
+/// Refuse an output path that exists and is not a regular file (a directory, a FIFO, a
+/// device): writing into a FIFO blocks until someone reads it, and into `/dev/null` or
+/// `/dev/zero` loses the output while the command reports success. `what` names the file in
+/// the message (`--record`).
+pub fn check_output_file(path: &Path, what: &str) -> Result<(), String> {
+    let shown = path.display();
+    match std::fs::metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(format!("cannot use {what} `{shown}`: {e}")),
+        Ok(meta) if meta.is_dir() => Err(format!("{what} `{shown}` is a directory, not a file")),
+        Ok(meta) if !meta.is_file() => Err(format!(
+            "{what} `{shown}` is not a regular file (a FIFO, socket or device); give the path of a file"
+        )),
+        Ok(_) => Ok(()),
+    }
 }
 
 /// A scene file that does not set `name` / `description` would inherit the dam break's;
@@ -166,6 +234,33 @@ mod tests {
             assert!(msg.contains(needle), "{arg}: {msg}");
             assert!(!msg.contains('\n'), "{msg}");
         }
+    }
+
+    #[test]
+    fn no_more_than_the_limit_is_read_whatever_the_length_says() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ten.txt");
+        std::fs::write(&path, b"0123456789").unwrap();
+        assert_eq!(read_input_file(&path, 10).unwrap(), b"0123456789");
+        assert!(matches!(
+            read_input_file(&path, 9),
+            Err(InputRefusal::TooLarge)
+        ));
+        // A regular file whose length is 0 but whose reads go on (procfs): the cap, not the
+        // length, stops the reading.
+        #[cfg(target_os = "linux")]
+        {
+            let maps = Path::new("/proc/self/maps");
+            assert_eq!(std::fs::metadata(maps).unwrap().len(), 0);
+            assert!(matches!(
+                read_input_file(maps, 16),
+                Err(InputRefusal::TooLarge)
+            ));
+        }
+        assert!(matches!(
+            read_input_file(Path::new("/dev/zero"), 16),
+            Err(InputRefusal::NotRegular)
+        ));
     }
 
     #[test]

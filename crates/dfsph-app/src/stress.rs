@@ -68,16 +68,29 @@ fn open_recorder(
     args: &StressArgs,
     scene: &Scene,
 ) -> Result<Recorder<BufWriter<File>>, String> {
-    if path.is_dir() {
+    // A FIFO would block the open until someone reads it, /dev/null would swallow the
+    // recording: only a regular file (or a new one) is written.
+    crate::scene_arg::check_output_file(path, "--record")?;
+    let source = format!("stress seed={} steps={}", args.seed, args.steps);
+    let header = Header::new(source, rayon::current_num_threads(), scene);
+    // Opened non-blocking and checked again, in case a FIFO took the file's place meanwhile
+    // (opening one for writing would wait for a reader); a regular file ignores the flag.
+    let mut options = std::fs::OpenOptions::new();
+    options.write(true).create(true).truncate(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NONBLOCK);
+    }
+    let file: File = options
+        .open(path)
+        .map_err(|e| format!("cannot create recording `{}`: {e}", path.display()))?;
+    if !file.metadata().is_ok_and(|m| m.is_file()) {
         return Err(format!(
-            "--record `{}` is a directory, not a file",
+            "--record `{}` is not a regular file (a FIFO, socket or device); give the path of a file",
             path.display()
         ));
     }
-    let source = format!("stress seed={} steps={}", args.seed, args.steps);
-    let header = Header::new(source, rayon::current_num_threads(), scene);
-    let file = File::create(path)
-        .map_err(|e| format!("cannot create recording `{}`: {e}", path.display()))?;
     Recorder::new(BufWriter::new(file), &header)
         .map_err(|e| format!("cannot write recording `{}`: {e}", path.display()))
 }

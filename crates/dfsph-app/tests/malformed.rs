@@ -341,3 +341,89 @@ fn hostile_actions_in_a_recording_are_refused_not_executed() {
         "{stdout}"
     );
 }
+
+/// Run `dfsph2d` with `args`, killed after 30 s: a command that blocks on a FIFO or reads
+/// `/dev/zero` for ever fails the test instead of hanging it. `None` when it had to be killed.
+fn dfsph2d_within_30s(args: &[&str]) -> Option<Output> {
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(common::BIN)
+        .args(args)
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .env("RUST_BACKTRACE", "1")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("dfsph2d runs");
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    while child.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > deadline {
+            child.kill().unwrap();
+            child.wait().unwrap();
+            return None;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    Some(child.wait_with_output().unwrap())
+}
+
+/// A FIFO at `path` (nobody ever opens its other end).
+fn mkfifo(path: &Path) {
+    let c = std::ffi::CString::new(path.to_str().unwrap()).unwrap();
+    // SAFETY: `c` is a valid NUL-terminated path.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0, "mkfifo");
+}
+
+#[test]
+fn a_fifo_or_device_is_refused_as_a_recording_without_blocking() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let (scene, _) = good_recording(dir);
+    let fifo = dir.join("fifo.jsonl");
+    mkfifo(&fifo);
+    let out_dir = dir.join("never");
+    for path in [
+        fifo.as_path(),
+        Path::new("/dev/zero"),
+        Path::new("/dev/null"),
+    ] {
+        let shown = path.to_str().unwrap();
+        // A replay reading it: the FIFO blocked for ever, /dev/zero was read until memory ran out.
+        let args = [
+            "run",
+            scene.to_str().unwrap(),
+            "--replay",
+            shown,
+            "--out",
+            out_dir.to_str().unwrap(),
+        ];
+        let out = dfsph2d_within_30s(&args).unwrap_or_else(|| panic!("replay {shown} hung"));
+        assert_refused(
+            &out,
+            "is not a regular file",
+            &out_dir,
+            &format!("replay {shown}"),
+        );
+        assert!(text(&out.stderr).contains(&format!("recording `{shown}`")));
+        // `stress --record` writing it: the FIFO blocked for ever, the devices swallowed the
+        // recording and stress exited 0.
+        let args = [
+            "stress",
+            scene.to_str().unwrap(),
+            "--steps",
+            "5",
+            "--record",
+            shown,
+        ];
+        let out = dfsph2d_within_30s(&args).unwrap_or_else(|| panic!("stress {shown} hung"));
+        assert_refused(
+            &out,
+            "is not a regular file",
+            &out_dir,
+            &format!("stress {shown}"),
+        );
+        assert!(text(&out.stderr).contains(&format!("--record `{shown}`")));
+    }
+    assert!(fifo.exists(), "the FIFO is left where it was");
+}
