@@ -23,6 +23,10 @@ pub enum Command {
     /// List the built-in scenes, one per line: name and description.
     Scenes,
     /// Run a scene headless and write statistics and particle snapshots.
+    ///
+    /// Exits with 2, after writing its output, when the simulation produced non-finite values
+    /// (it stops at that step) or clamped particles back into the tank (water went through a
+    /// wall; the run goes on to the end).
     Run(RunArgs),
     /// Drive a scene with a seeded random sequence of the viewer's actions and check it.
     #[command(long_about = STRESS_ABOUT)]

@@ -11,8 +11,9 @@
 //! dfsph2d bench [--quick] [--json FILE] [--threads N,..] [--sizes 5k,20k,80k,320k] [--plot F]
 //! ```
 //!
-//! Exit codes: 0 success; 2 bad arguments or scene (nothing written), or a simulation that
-//! produced non-finite values; 1 any other failure (I/O while writing, the viewer, a failed
+//! Exit codes: 0 success; 2 bad arguments or scene (nothing written), or a `run` whose
+//! simulation produced non-finite values or clamped particles back into the tank (output
+//! written); 1 any other failure (I/O while writing, the viewer, a failed
 //! validation check, a `stress` violation, a replay that diverged from its recording); 130
 //! stopped by Ctrl-C (files complete up to the last step).
 
@@ -180,26 +181,47 @@ fn run(args: RunArgs) -> Result<(), Failure> {
             ),
         });
     }
-    if let Some(why) = replayed.and_then(|r| r.diverged) {
-        if outcome.broke_at.is_none() {
-            return Err(Failure {
-                code: 1,
-                message: why,
-            });
-        }
-    }
-    match outcome.broke_at {
-        Some((step, time)) => Err(Failure {
-            code: 2,
+    if let Some((step, time)) = outcome.broke_at {
+        return Err(Failure {
+            code: SIMULATION_FAILED,
             message: format!(
                 "the simulation produced non-finite values at step {step} (t = {time:.4} s) and \
                  was stopped; the output up to that step is in `{}`",
                 plan.out.display()
             ),
+        });
+    }
+    // A clamp puts a particle that went through a wall back into the tank: the water leaked,
+    // and the results are not to be trusted any more than with non-finite values. The run
+    // goes on (the clamp keeps it in the tank) and writes everything, then says so.
+    if outcome.clamped > 0 {
+        return Err(Failure {
+            code: SIMULATION_FAILED,
+            message: format!(
+                "{} clamped back into the tank over the run (water went through a wall); the \
+                 output is complete in `{}`",
+                if outcome.clamped == 1 {
+                    "1 particle was".to_string()
+                } else {
+                    format!("{} particles were", outcome.clamped)
+                },
+                plan.out.display()
+            ),
+        });
+    }
+    match replayed.and_then(|r| r.diverged) {
+        Some(why) => Err(Failure {
+            code: 1,
+            message: why,
         }),
         None => Ok(()),
     }
 }
+
+/// Exit code of a `run` whose simulation failed, with its output written: non-finite values
+/// (the run stops at that step) or particles clamped back into the tank (it runs to the end).
+/// The same code as bad input, as the scene's parameters are what let the simulation fail.
+const SIMULATION_FAILED: u8 = 2;
 
 /// The most particle snapshots `--every` may ask for over a run. Each is a file per format, and
 /// finding the next snapshot time counts through the ones a step jumps over, so an `--every`

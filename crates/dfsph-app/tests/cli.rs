@@ -501,3 +501,55 @@ fn view_rejects_a_bad_scene_before_opening_a_window() {
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("--exit-after"));
 }
+
+/// A run that clamps particles back into the tank leaked water: it writes all its output, then
+/// exits with 2 and one line saying how many particles were clamped (issue 32: it exited 0).
+#[test]
+fn a_run_that_clamps_particles_exits_2_after_writing_its_output() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A forced 1 s step from rest (`min` = `max` = 1 s beats the CFL bound): the water falls
+    // metres through the floor in one step and is clamped back.
+    let scene = write_scene(
+        tmp.path(),
+        "leak.json",
+        br#"{"particle_radius": 0.05, "time_step": {"min": 1, "max": 1}}"#,
+    );
+    let out_dir = tmp.path().join("out");
+    let out = dfsph2d(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--until",
+        "2",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert_eq!(out.status.code(), Some(2), "{stdout}{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    // The count is the sum of the per-step `clamped` column, and the summary's.
+    let stats = csv_rows(&out_dir.join("stats.csv"));
+    let column = stats[0].iter().position(|c| c == "clamped").unwrap();
+    let clamped: u64 = stats[1..]
+        .iter()
+        .map(|r| r[column].parse::<u64>().unwrap())
+        .sum();
+    assert!(clamped > 0, "the scene no longer clamps: {stdout}");
+    assert_eq!(
+        stderr,
+        format!(
+            "error: {clamped} particles were clamped back into the tank over the run (water went \
+             through a wall); the output is complete in `{}`\n",
+            out_dir.display()
+        )
+    );
+    assert!(
+        stdout.contains(&format!("; {clamped} clamped, 0 non-finite")),
+        "{stdout}"
+    );
+    // Everything was written: the run went on to --until.
+    let last_time: f64 = stats.last().unwrap()[1].parse().unwrap();
+    assert!(last_time >= 2.0, "{last_time}");
+    for file in ["scene.json", "particles/index.csv", "particles/00000.csv"] {
+        assert!(out_dir.join(file).is_file(), "{file} missing");
+    }
+}
