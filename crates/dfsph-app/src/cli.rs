@@ -135,7 +135,10 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub replay: Option<PathBuf>,
 
-    /// Output directory (created if missing; existing files in it are overwritten).
+    /// Output directory, created if missing. In an existing DIR, a run first removes the
+    /// frames an earlier run wrote there (listed in DIR/.dfsph2d-manifest) and overwrites the
+    /// files of the names it writes (scene.json, stats.csv, particles/index.csv, ...); every
+    /// other file is kept. DIR/particles must not be a symbolic link.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
 

@@ -6,11 +6,19 @@
 //! DIR/particles/index.csv     frame,time,file
 //! DIR/particles/NNNNN.csv     per snapshot (.vtu / .png when asked for)
 //! DIR/particles/particles.pvd ParaView collection of the .vtu files with their times
+//! DIR/.dfsph2d-manifest       every file above that this run wrote, one per line
 //! ```
+//!
+//! A run removes only what an earlier run of ours wrote: the files its manifest lists (and
+//! their `NAME.tmp`, left by a killed run), nothing else. A name is recorded in the manifest
+//! before its file is created, so a run killed at any point leaves a manifest that covers
+//! everything it wrote. `DIR/particles` must be a real directory, not a symbolic link, so
+//! nothing outside DIR is ever written or removed.
 
+use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use dfsph::{Scene, Simulation};
 use dfsph_io::{FrameRecord, RenderGeometry, RenderOptions};
 
@@ -19,13 +27,28 @@ use crate::cli::Format;
 /// Sub-directory holding the snapshots.
 pub const PARTICLES_DIR: &str = "particles";
 
+/// The list of files a run wrote, in the output directory, relative to it.
+pub const MANIFEST: &str = ".dfsph2d-manifest";
+
+/// First line of [`MANIFEST`].
+const MANIFEST_HEADER: &str =
+    "# dfsph2d run: files written by this run, removed by the next run in this directory";
+
 /// Check, without creating anything, that `dir` can be used as the output directory: it
-/// may exist (its files are then overwritten) but must not be a file.
+/// may exist (its files of the names we write are then overwritten) but must not be a file,
+/// and `dir/particles`, if it exists, must be a directory and not a symbolic link (which
+/// would have frames written, and old ones removed, outside `dir`).
 pub fn check_output_dir(dir: &Path) -> Result<(), String> {
     match std::fs::metadata(dir) {
         Ok(meta) if meta.is_dir() => {
             let particles = dir.join(PARTICLES_DIR);
-            match std::fs::metadata(&particles) {
+            match std::fs::symlink_metadata(&particles) {
+                Ok(m) if m.file_type().is_symlink() => Err(format!(
+                    "output `{}` is a symbolic link; the frames must go into a directory of \
+                     their own inside `{}`",
+                    particles.display(),
+                    dir.display()
+                )),
                 Ok(m) if !m.is_dir() => Err(format!(
                     "output `{}` exists and is not a directory",
                     particles.display()
@@ -45,8 +68,9 @@ pub fn check_output_dir(dir: &Path) -> Result<(), String> {
     }
 }
 
-/// Create `dir` and `dir/particles`, and remove snapshot files a previous run left there
-/// (`NNNNN.csv|vtu|png`), so the directory holds exactly this run's frames.
+/// Create `dir` and `dir/particles`, and remove the files an earlier run of ours listed in
+/// `dir/`[`MANIFEST`] (with their `NAME.tmp`), so the directory holds exactly this run's
+/// output and every file of the user's. Call [`check_output_dir`] first.
 pub fn create_output_dir(dir: &Path) -> Result<(), String> {
     let particles = dir.join(PARTICLES_DIR);
     std::fs::create_dir_all(&particles).map_err(|e| {
@@ -55,17 +79,18 @@ pub fn create_output_dir(dir: &Path) -> Result<(), String> {
             particles.display()
         )
     })?;
-    let entries = std::fs::read_dir(&particles)
-        .map_err(|e| format!("cannot list `{}`: {e}", particles.display()))?;
-    for entry in entries.flatten() {
-        let name = entry.file_name();
-        let name = name.to_string_lossy();
-        // `NAME.tmp`: a file a killed run was writing (see `dfsph_io::atomic`).
-        if is_frame_file(name.strip_suffix(".tmp").unwrap_or(&name)) {
-            std::fs::remove_file(entry.path()).map_err(|e| {
-                format!("cannot remove old frame `{}`: {e}", entry.path().display())
-            })?;
-        }
+    // Checked again now that it exists: never follow a link out of `dir`.
+    check_output_dir(dir)?;
+    let manifest = dir.join(MANIFEST);
+    for name in previous_outputs(&manifest)? {
+        let path = dir.join(&name);
+        remove_our_file(&dfsph_io::atomic::tmp_path(&path))?;
+        remove_our_file(&path)?;
+    }
+    match std::fs::remove_file(&manifest) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return Err(format!("cannot remove `{}`: {e}", manifest.display())),
     }
     // Temporary files of a run that was killed (SIGKILL, power loss) while writing them.
     for tmp in [
@@ -75,13 +100,91 @@ pub fn create_output_dir(dir: &Path) -> Result<(), String> {
         particles.join("index.csv.tmp"),
         particles.join("particles.pvd.tmp"),
     ] {
-        match std::fs::remove_file(&tmp) {
-            Ok(()) => {}
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => return Err(format!("cannot remove `{}`: {e}", tmp.display())),
-        }
+        remove_our_file(&tmp)?;
     }
     Ok(())
+}
+
+/// The names listed in the manifest at `path` that are names we write (see
+/// [`is_our_output`]); anything else in it is ignored. None when there is no manifest.
+fn previous_outputs(path: &Path) -> Result<Vec<String>, String> {
+    let meta = match std::fs::symlink_metadata(path) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(format!("cannot read `{}`: {e}", path.display())),
+    };
+    if !meta.is_file() {
+        return Err(format!(
+            "`{}` is not a regular file; it is where dfsph2d lists the files it wrote",
+            path.display()
+        ));
+    }
+    let file =
+        std::fs::File::open(path).map_err(|e| format!("cannot read `{}`: {e}", path.display()))?;
+    let mut names = Vec::new();
+    let mut lines = std::io::BufReader::new(file).lines();
+    if !matches!(lines.next(), Some(Ok(ref l)) if l == MANIFEST_HEADER) {
+        return Ok(names); // Not one of ours: remove nothing.
+    }
+    for line in lines {
+        let line = line.map_err(|e| format!("cannot read `{}`: {e}", path.display()))?;
+        if is_our_output(&line) {
+            names.push(line);
+        }
+    }
+    Ok(names)
+}
+
+/// A name, relative to the output directory, of a file a run writes: only these are ever
+/// removed, whatever the manifest says (no `..`, no absolute paths).
+fn is_our_output(name: &str) -> bool {
+    match name.split_once('/') {
+        Some((PARTICLES_DIR, file)) => is_frame_file(file),
+        _ => false,
+    }
+}
+
+/// Remove `path` if it is a regular file (a symbolic link of that name is left alone, and
+/// its target is never touched).
+fn remove_our_file(path: &Path) -> Result<(), String> {
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if m.is_file() => std::fs::remove_file(path)
+            .map_err(|e| format!("cannot remove old output `{}`: {e}", path.display())),
+        Ok(_) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(format!("cannot remove `{}`: {e}", path.display())),
+    }
+}
+
+/// The manifest of the running run: every output file's name is appended (and flushed to the
+/// file) before the file is created.
+pub struct Manifest {
+    path: PathBuf,
+    file: std::fs::File,
+}
+
+impl Manifest {
+    /// Start `dir/`[`MANIFEST`] (removed by [`create_output_dir`]; never follows a link).
+    pub fn create(dir: &Path) -> Result<Self> {
+        let path = dir.join(MANIFEST);
+        let mut file = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&path)
+            .with_context(|| format!("cannot create `{}`", path.display()))?;
+        writeln!(file, "{MANIFEST_HEADER}")
+            .with_context(|| format!("cannot write `{}`", path.display()))?;
+        Ok(Self { path, file })
+    }
+
+    /// Record `name` (relative to the output directory) as written by this run.
+    pub fn record(&mut self, name: &str) -> Result<()> {
+        debug_assert!(is_our_output(name), "{name}");
+        // One unbuffered write per name: it is in the file as soon as this returns.
+        self.file
+            .write_all(format!("{name}\n").as_bytes())
+            .with_context(|| format!("cannot write `{}`", self.path.display()))
+    }
 }
 
 /// `00042.csv`, `00042.vtu`, `123456.png`: a snapshot file this program writes.
@@ -135,7 +238,7 @@ impl FrameWriter {
 
     /// Write the simulation's current state as the next frame, unless this step was
     /// already written.
-    pub fn write(&mut self, sim: &Simulation) -> Result<()> {
+    pub fn write(&mut self, sim: &Simulation, manifest: &mut Manifest) -> Result<()> {
         let step = sim.step_count();
         if self.last_step == Some(step) {
             return Ok(());
@@ -144,7 +247,9 @@ impl FrameWriter {
         let stem = format!("{frame:05}");
         let snapshot = sim.snapshot();
         for &format in &self.formats {
-            let path = self.dir.join(format!("{stem}.{}", format.extension()));
+            let name = format!("{stem}.{}", format.extension());
+            manifest.record(&format!("{PARTICLES_DIR}/{name}"))?;
+            let path = self.dir.join(name);
             match format {
                 Format::Csv => dfsph_io::write_snapshot_csv(&path, &snapshot)?,
                 Format::Vtk => dfsph_io::write_vtu(&path, &snapshot)?,
@@ -221,19 +326,57 @@ mod tests {
     }
 
     #[test]
-    fn stale_frames_are_removed_other_files_kept() {
+    fn only_files_in_our_manifest_are_removed() {
         let dir = tempfile::tempdir().unwrap();
         let particles = dir.path().join(PARTICLES_DIR);
         std::fs::create_dir_all(&particles).unwrap();
-        std::fs::write(particles.join("00007.csv"), "old").unwrap();
-        std::fs::write(particles.join("notes.txt"), "mine").unwrap();
-        std::fs::write(particles.join("00008.vtu.tmp"), "partial").unwrap();
+        for name in [
+            "00007.csv",
+            "00008.csv",
+            "00008.vtu.tmp",
+            "00009.vtu.tmp",
+            "notes.txt",
+        ] {
+            std::fs::write(particles.join(name), "x").unwrap();
+        }
         std::fs::write(dir.path().join("stats.csv.tmp"), "partial").unwrap();
+        std::fs::write(dir.path().join("mine.csv"), "mine").unwrap();
+        let listed = "particles/00008.csv\nparticles/00008.vtu\n../mine.csv\n/etc/passwd\n\
+                      particles/../mine.csv\nparticles/notes.txt\n";
+        let manifest = dir.path().join(MANIFEST);
+        // Without our header, the list is not ours: nothing is removed.
+        std::fs::write(&manifest, listed).unwrap();
         create_output_dir(dir.path()).unwrap();
+        assert!(particles.join("00008.csv").exists());
+        std::fs::write(&manifest, format!("{MANIFEST_HEADER}\n{listed}")).unwrap();
+        create_output_dir(dir.path()).unwrap();
+        assert!(!particles.join("00008.csv").exists());
         assert!(!particles.join("00008.vtu.tmp").exists());
         assert!(!dir.path().join("stats.csv.tmp").exists());
-        assert!(!particles.join("00007.csv").exists());
-        assert!(particles.join("notes.txt").exists());
+        assert!(!manifest.exists());
+        for kept in ["00007.csv", "00009.vtu.tmp", "notes.txt", "../mine.csv"] {
+            assert!(particles.join(kept).exists(), "{kept} removed");
+        }
+        // A new manifest is never written through a link.
+        let mut m = Manifest::create(dir.path()).unwrap();
+        m.record("particles/00000.csv").unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&manifest).unwrap(),
+            format!("{MANIFEST_HEADER}\nparticles/00000.csv\n")
+        );
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_particles_link_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let elsewhere = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        std::fs::create_dir(&out).unwrap();
+        std::os::unix::fs::symlink(elsewhere.path(), out.join(PARTICLES_DIR)).unwrap();
+        let err = check_output_dir(&out).unwrap_err();
+        assert!(err.contains("is a symbolic link"), "{err}");
+        assert!(create_output_dir(&out).is_err());
     }
 
     #[test]

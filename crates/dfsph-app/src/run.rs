@@ -11,7 +11,7 @@ use dfsph_io::StatsCsvWriter;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::cli::Format;
-use crate::output::FrameWriter;
+use crate::output::{FrameWriter, Manifest};
 use crate::probes_csv::ProbesCsvWriter;
 use crate::schedule::{reached, SnapshotSchedule};
 
@@ -116,6 +116,7 @@ pub fn execute_with(
 ) -> Result<RunOutcome> {
     let started = Instant::now();
     let progress = progress_bar();
+    let mut manifest = Manifest::create(&plan.out)?;
     dfsph_io::write_atomic(plan.out.join("scene.json"), |w| {
         w.write_all(plan.scene.to_json().as_bytes())?;
         w.write_all(b"\n")
@@ -127,7 +128,7 @@ pub fn execute_with(
     }
     let mut frames = FrameWriter::new(&plan.out, &plan.formats, &plan.scene, plan.png_width);
     let mut schedule = SnapshotSchedule::new(plan.every);
-    frames.write(&sim)?;
+    frames.write(&sim, &mut manifest)?;
 
     let mut broke_at = None;
     let mut interrupted = false;
@@ -143,7 +144,7 @@ pub fn execute_with(
             // Reset: simulated time starts again at 0; snapshot the new start.
             frames.new_epoch();
             schedule = SnapshotSchedule::new(plan.every);
-            frames.write(&sim)?;
+            frames.write(&sim, &mut manifest)?;
         }
         let s = *sim.step();
         stats.push(&s)?;
@@ -154,7 +155,7 @@ pub fn execute_with(
             broke_at = Some((s.step, s.time));
         }
         if schedule.due(s.time, s.dt) {
-            frames.write(&sim)?;
+            frames.write(&sim, &mut manifest)?;
         }
         let done = driver.progress().unwrap_or(s.time / plan.until);
         progress.set_position((done.min(1.0) * 1000.0) as u64);
@@ -172,7 +173,7 @@ pub fn execute_with(
     if !interrupted && driver.after_last_step(&mut sim)? {
         frames.new_epoch();
     }
-    frames.write(&sim)?;
+    frames.write(&sim, &mut manifest)?;
     frames.finish()?;
     stats.finish()?;
     if let Some(p) = probes {

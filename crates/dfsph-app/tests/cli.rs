@@ -192,7 +192,10 @@ fn run_writes_every_output_file() {
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     top.sort();
-    assert_eq!(top, ["particles", "scene.json", "stats.csv"]);
+    assert_eq!(
+        top,
+        [".dfsph2d-manifest", "particles", "scene.json", "stats.csv"]
+    );
 
     // The ParaView collection lists every .vtu with its time.
     let pvd = std::fs::read_to_string(particles.join("particles.pvd")).unwrap();
@@ -207,9 +210,9 @@ fn run_defaults_to_csv_every_50_ms_and_reuses_an_existing_directory() {
     let out_dir = tmp.path().join("out");
     let particles = out_dir.join("particles");
     std::fs::create_dir_all(&particles).unwrap();
-    // Leftovers of an earlier, longer run, and a file of the user's.
-    std::fs::write(particles.join("00009.csv"), "stale").unwrap();
-    std::fs::write(particles.join("00009.png"), "stale").unwrap();
+    // Files of the user's, two of them named like frames: no run of ours wrote them.
+    std::fs::write(particles.join("00009.csv"), "mine").unwrap();
+    std::fs::write(particles.join("20240101.png"), "mine").unwrap();
     std::fs::write(out_dir.join("notes.txt"), "mine").unwrap();
 
     let out = dfsph2d(&[
@@ -227,11 +230,132 @@ fn run_defaults_to_csv_every_50_ms_and_reuses_an_existing_directory() {
     assert!((times[1] - 0.05).abs() < 1e-6 && (times[2] - 0.1).abs() < 0.006);
     assert!(particles.join("00002.csv").exists());
     assert!(!particles.join("00000.vtu").exists() && !particles.join("00000.png").exists());
-    assert!(!particles.join("00009.csv").exists(), "stale frame kept");
-    assert!(!particles.join("00009.png").exists(), "stale frame kept");
+    for mine in ["particles/00009.csv", "particles/20240101.png", "notes.txt"] {
+        assert_eq!(
+            std::fs::read_to_string(out_dir.join(mine)).unwrap(),
+            "mine",
+            "{mine}"
+        );
+    }
+}
+
+/// Runs the coarse scene to `until` into `out_dir` with `extra` arguments; must succeed.
+fn run_coarse(tmp: &Path, out_dir: &Path, until: &str, extra: &[&str]) -> std::process::Output {
+    let scene = write_scene(tmp, "coarse.json", COARSE.as_bytes());
+    let mut args = vec![
+        "run",
+        scene.to_str().unwrap(),
+        "--until",
+        until,
+        "--every",
+        "0.02",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    dfsph2d(&args)
+}
+
+fn names_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn a_shorter_rerun_removes_our_old_frames_and_keeps_the_users() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out_dir = tmp.path().join("out");
+    let particles = out_dir.join("particles");
+    let first = run_coarse(tmp.path(), &out_dir, "0.1", &["--format", "csv,png"]);
+    assert!(first.status.success(), "{}", text(&first.stderr));
+    assert!(particles.join("00005.png").exists());
+    std::fs::write(particles.join("20240101.png"), "mine").unwrap();
+    std::fs::write(particles.join("00042.csv"), "mine").unwrap();
+
+    let second = run_coarse(tmp.path(), &out_dir, "0.04", &["--format", "csv"]);
+    assert!(second.status.success(), "{}", text(&second.stderr));
+    let frames = csv_rows(&particles.join("index.csv")).len() - 1;
+    assert_eq!(frames, 3, "t = 0, 0.02, 0.04");
+    let mut expected: Vec<String> = (0..frames).map(|i| format!("{i:05}.csv")).collect();
+    expected.extend(["00042.csv", "20240101.png", "index.csv"].map(String::from));
+    expected.sort();
+    // No stale frame of the first run (00003.csv .. 00005.csv, every .png), the user's kept.
+    assert_eq!(names_in(&particles), expected);
     assert_eq!(
-        std::fs::read_to_string(out_dir.join("notes.txt")).unwrap(),
+        std::fs::read_to_string(particles.join("00042.csv")).unwrap(),
         "mine"
+    );
+    // The manifest lists exactly this run's frames.
+    let manifest = std::fs::read_to_string(out_dir.join(".dfsph2d-manifest")).unwrap();
+    let listed: Vec<&str> = manifest.lines().skip(1).collect();
+    assert_eq!(
+        listed,
+        [
+            "particles/00000.csv",
+            "particles/00001.csv",
+            "particles/00002.csv"
+        ]
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn a_particles_symlink_is_refused_and_nothing_behind_it_touched() {
+    let tmp = tempfile::tempdir().unwrap();
+    let elsewhere = tmp.path().join("elsewhere");
+    std::fs::create_dir(&elsewhere).unwrap();
+    for name in ["20240101.png", "00007.csv", "00000.csv"] {
+        std::fs::write(elsewhere.join(name), "mine").unwrap();
+    }
+    let out_dir = tmp.path().join("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    std::os::unix::fs::symlink(&elsewhere, out_dir.join("particles")).unwrap();
+    // Even a manifest naming those files (say, copied from elsewhere) removes nothing.
+    let first = run_coarse(tmp.path(), &tmp.path().join("real"), "0.02", &[]);
+    assert!(first.status.success(), "{}", text(&first.stderr));
+    std::fs::copy(
+        tmp.path().join("real/.dfsph2d-manifest"),
+        out_dir.join(".dfsph2d-manifest"),
+    )
+    .unwrap();
+
+    let out = run_coarse(tmp.path(), &out_dir, "0.02", &[]);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.starts_with("error: output `") && stderr.contains("particles` is a symbolic link"),
+        "{stderr}"
+    );
+    assert_eq!(names_in(&out_dir), [".dfsph2d-manifest", "particles"]);
+    assert_eq!(
+        names_in(&elsewhere),
+        ["00000.csv", "00007.csv", "20240101.png"]
+    );
+    for name in ["20240101.png", "00007.csv", "00000.csv"] {
+        assert_eq!(
+            std::fs::read_to_string(elsewhere.join(name)).unwrap(),
+            "mine"
+        );
+    }
+}
+
+#[test]
+fn run_help_says_what_an_existing_directory_gets() {
+    let out = dfsph2d(&["run", "--help"]);
+    let help = text(&out.stdout)
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ");
+    assert!(
+        help.contains("removes the frames an earlier run wrote there")
+            && help.contains("every other file is kept")
+            && help.contains("must not be a symbolic link"),
+        "{help}"
     );
 }
 
