@@ -136,9 +136,9 @@ pub struct RunArgs {
     pub replay: Option<PathBuf>,
 
     /// Output directory, created if missing. In an existing DIR, a run first removes the
-    /// frames an earlier run wrote there (listed in DIR/.dfsph2d-manifest) and overwrites the
-    /// files of the names it writes (scene.json, stats.csv, particles/index.csv, ...); every
-    /// other file is kept. DIR/particles must not be a symbolic link.
+    /// files an earlier run wrote there (listed in DIR/.dfsph2d-manifest: frames, stats.csv,
+    /// probes.csv, particles.pvd, ...) and overwrites any other file of a name it writes;
+    /// every other file is kept. DIR/particles must not be a symbolic link.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
 

@@ -10,10 +10,11 @@
 //! ```
 //!
 //! A run removes only what an earlier run of ours wrote: the files its manifest lists (and
-//! their `NAME.tmp`, left by a killed run), nothing else. A name is recorded in the manifest
-//! before its file is created, so a run killed at any point leaves a manifest that covers
-//! everything it wrote. `DIR/particles` must be a real directory, not a symbolic link, so
-//! nothing outside DIR is ever written or removed.
+//! their `NAME.tmp`, left by a killed run), nothing else; so no `particles.pvd` or
+//! `probes.csv` of an earlier run outlives a run that does not write one. A name is recorded
+//! in the manifest before its file is created, so a run killed at any point leaves a manifest
+//! that covers everything it wrote. `DIR/particles` must be a real directory, not a symbolic
+//! link, so nothing outside DIR is ever written or removed.
 
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
@@ -139,8 +140,11 @@ fn previous_outputs(path: &Path) -> Result<Vec<String>, String> {
 /// removed, whatever the manifest says (no `..`, no absolute paths).
 fn is_our_output(name: &str) -> bool {
     match name.split_once('/') {
-        Some((PARTICLES_DIR, file)) => is_frame_file(file),
-        _ => false,
+        Some((PARTICLES_DIR, file)) => {
+            is_frame_file(file) || matches!(file, "index.csv" | "particles.pvd")
+        }
+        Some(_) => false,
+        None => matches!(name, "scene.json" | "stats.csv" | "probes.csv"),
     }
 }
 
@@ -269,9 +273,11 @@ impl FrameWriter {
     }
 
     /// Write `index.csv` (and `particles.pvd` for VTK output).
-    pub fn finish(&self) -> Result<()> {
+    pub fn finish(&self, manifest: &mut Manifest) -> Result<()> {
+        manifest.record(&format!("{PARTICLES_DIR}/index.csv"))?;
         dfsph_io::write_frame_index(self.dir.join("index.csv"), &self.frames)?;
         if self.formats.contains(&Format::Vtk) {
+            manifest.record(&format!("{PARTICLES_DIR}/particles.pvd"))?;
             let series: Vec<(f64, String)> = self
                 .frames
                 .iter()

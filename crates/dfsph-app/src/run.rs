@@ -117,11 +117,16 @@ pub fn execute_with(
     let started = Instant::now();
     let progress = progress_bar();
     let mut manifest = Manifest::create(&plan.out)?;
+    manifest.record("scene.json")?;
     dfsph_io::write_atomic(plan.out.join("scene.json"), |w| {
         w.write_all(plan.scene.to_json().as_bytes())?;
         w.write_all(b"\n")
     })?;
+    manifest.record("stats.csv")?;
     let mut stats = StatsCsvWriter::create(plan.out.join("stats.csv"))?;
+    if !sim.scene().probes.is_empty() {
+        manifest.record("probes.csv")?;
+    }
     let mut probes = ProbesCsvWriter::create(plan.out.join("probes.csv"), &sim)?;
     if let Some(p) = probes.as_mut() {
         p.push(&sim)?;
@@ -174,7 +179,7 @@ pub fn execute_with(
         frames.new_epoch();
     }
     frames.write(&sim, &mut manifest)?;
-    frames.finish()?;
+    frames.finish(&mut manifest)?;
     stats.finish()?;
     if let Some(p) = probes {
         p.finish()?;

@@ -289,16 +289,96 @@ fn a_shorter_rerun_removes_our_old_frames_and_keeps_the_users() {
         std::fs::read_to_string(particles.join("00042.csv")).unwrap(),
         "mine"
     );
-    // The manifest lists exactly this run's frames.
+    // The manifest lists exactly this run's files, each before it was written.
     let manifest = std::fs::read_to_string(out_dir.join(".dfsph2d-manifest")).unwrap();
     let listed: Vec<&str> = manifest.lines().skip(1).collect();
     assert_eq!(
         listed,
         [
+            "scene.json",
+            "stats.csv",
             "particles/00000.csv",
             "particles/00001.csv",
-            "particles/00002.csv"
+            "particles/00002.csv",
+            "particles/index.csv"
         ]
+    );
+}
+
+#[test]
+fn a_csv_run_after_a_vtk_run_leaves_no_stale_pvd_and_keeps_a_users() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out_dir = tmp.path().join("out");
+    let particles = out_dir.join("particles");
+    let vtk = run_coarse(tmp.path(), &out_dir, "0.04", &["--format", "vtk"]);
+    assert!(vtk.status.success(), "{}", text(&vtk.stderr));
+    assert!(particles.join("particles.pvd").exists());
+    let csv = run_coarse(tmp.path(), &out_dir, "0.04", &["--format", "csv"]);
+    assert!(csv.status.success(), "{}", text(&csv.stderr));
+    // The old collection would list .vtu files that are gone.
+    assert_eq!(
+        names_in(&particles),
+        ["00000.csv", "00001.csv", "00002.csv", "index.csv"]
+    );
+
+    // A particles.pvd that no run of ours wrote is the user's: kept.
+    let other = tmp.path().join("other");
+    std::fs::create_dir_all(other.join("particles")).unwrap();
+    std::fs::write(other.join("particles/particles.pvd"), "mine").unwrap();
+    let csv = run_coarse(tmp.path(), &other, "0.02", &["--format", "csv"]);
+    assert!(csv.status.success(), "{}", text(&csv.stderr));
+    assert_eq!(
+        std::fs::read_to_string(other.join("particles/particles.pvd")).unwrap(),
+        "mine"
+    );
+}
+
+#[test]
+fn a_run_without_probes_after_one_with_leaves_no_stale_probes_csv() {
+    let tmp = tempfile::tempdir().unwrap();
+    let probed = write_scene(
+        tmp.path(),
+        "probed.json",
+        br#"{"particle_radius": 0.05,
+             "probes": [{"type": "pressure", "name": "p", "at": [0.5, 0.05]}]}"#,
+    );
+    let out_dir = tmp.path().join("out");
+    let with = dfsph2d(&[
+        "run",
+        probed.to_str().unwrap(),
+        "--until",
+        "0.02",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(with.status.success(), "{}", text(&with.stderr));
+    assert!(out_dir.join("probes.csv").exists());
+    let manifest = std::fs::read_to_string(out_dir.join(".dfsph2d-manifest")).unwrap();
+    for name in [
+        "scene.json",
+        "stats.csv",
+        "probes.csv",
+        "particles/index.csv",
+    ] {
+        assert!(manifest.lines().any(|l| l == name), "{name}: {manifest}");
+    }
+
+    let without = run_coarse(tmp.path(), &out_dir, "0.02", &[]);
+    assert!(without.status.success(), "{}", text(&without.stderr));
+    assert_eq!(
+        names_in(&out_dir),
+        [".dfsph2d-manifest", "particles", "scene.json", "stats.csv"]
+    );
+
+    // A probes.csv of the user's in a fresh directory is kept.
+    let other = tmp.path().join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::write(other.join("probes.csv"), "mine").unwrap();
+    let without = run_coarse(tmp.path(), &other, "0.02", &[]);
+    assert!(without.status.success(), "{}", text(&without.stderr));
+    assert_eq!(
+        std::fs::read_to_string(other.join("probes.csv")).unwrap(),
+        "mine"
     );
 }
 
@@ -352,7 +432,7 @@ fn run_help_says_what_an_existing_directory_gets() {
         .collect::<Vec<_>>()
         .join(" ");
     assert!(
-        help.contains("removes the frames an earlier run wrote there")
+        help.contains("removes the files an earlier run wrote there")
             && help.contains("every other file is kept")
             && help.contains("must not be a symbolic link"),
         "{help}"
