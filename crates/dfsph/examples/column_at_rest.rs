@@ -41,21 +41,8 @@ fn main() {
     {
         let snap = sim.snapshot();
         let top = snap.position.iter().map(|p| p.y).fold(0.0f32, f32::max) as f64 + r;
-        let (mut sum, mut mx, mut cnt) = (0.0f64, 0.0f64, 0);
-        for (p, pr) in snap.position.iter().zip(&snap.pressure) {
-            let (x, y) = (p.x as f64, p.y as f64);
-            if x > 3.0 * d && x < w - 3.0 * d && y > 3.0 * d && y < h - 3.0 * d {
-                let e = (*pr as f64 - 1000.0 * 9.81 * (top - y)) / (1000.0 * 9.81 * h);
-                sum += e;
-                mx = mx.max(e.abs());
-                cnt += 1;
-            }
-        }
-        println!(
-            "t=0 top={top:.4} p_err vs top: mean={:.4} max={:.4}",
-            sum / cnt.max(1) as f64,
-            mx
-        );
+        let (mean, mx, _) = pressure_error(&snap, w, h, d, top);
+        println!("t=0 top={top:.4} p_err vs top: mean={mean:.4} max={mx:.4}");
     }
     while sim.time() < until {
         let st = *sim.step();
@@ -78,20 +65,11 @@ fn main() {
         if st.time >= next || st.clamped + st.non_finite > 0 {
             next += until / prints;
             let snap = sim.snapshot();
-            let (mut sum, mut mx, mut cnt) = (0.0f64, 0.0f64, 0);
-            for (p, pr) in snap.position.iter().zip(&snap.pressure) {
-                let (x, y) = (p.x as f64, p.y as f64);
-                if x > 3.0 * d && x < w - 3.0 * d && y > 3.0 * d && y < h - 3.0 * d {
-                    let e = (*pr as f64 - 1000.0 * 9.81 * (h - y)) / (1000.0 * 9.81 * h);
-                    sum += e;
-                    mx = mx.max(e.abs());
-                    cnt += 1;
-                }
-            }
+            let (mean, mx, cnt) = pressure_error(&snap, w, h, d, h);
             println!(
                 "t={:.3} dt={:.2e} it={} itv={} vmax={:.4} ke={:.3e} err={:.4}/{:.4} clamp={} p_err mean={:.4} max={:.4} (n={cnt}) wall={:.1}s",
                 st.time, st.dt, st.density_iterations, st.divergence_iterations, st.max_speed, st.kinetic_energy,
-                st.avg_density_error_pct, st.max_density_error_pct, sim.total_clamped(), sum / cnt.max(1) as f64, mx,
+                st.avg_density_error_pct, st.max_density_error_pct, sim.total_clamped(), mean, mx,
                 t0.elapsed().as_secs_f64()
             );
         }
@@ -178,4 +156,20 @@ fn main() {
         its as f64 / sim.stats().step as f64,
         t0.elapsed().as_secs_f64()
     );
+}
+
+/// Mean and largest `(p − ρ0·g·(top − y))/(ρ0·g·h)` of the particles more than three spacings
+/// from the walls, the floor and the nominal surface `h`, and their count.
+fn pressure_error(snap: &dfsph::Snapshot, w: f64, h: f64, d: f64, top: f64) -> (f64, f64, usize) {
+    let (mut sum, mut max, mut count) = (0.0f64, 0.0f64, 0);
+    for (p, pr) in snap.position.iter().zip(&snap.pressure) {
+        let (x, y) = (p.x as f64, p.y as f64);
+        if x > 3.0 * d && x < w - 3.0 * d && y > 3.0 * d && y < h - 3.0 * d {
+            let e = (*pr as f64 - 1000.0 * 9.81 * (top - y)) / (1000.0 * 9.81 * h);
+            sum += e;
+            max = max.max(e.abs());
+            count += 1;
+        }
+    }
+    (sum / count.max(1) as f64, max, count)
 }
