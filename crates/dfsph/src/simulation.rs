@@ -452,6 +452,7 @@ impl Simulation {
                         self.spacing,
                         self.gravity.length(),
                         dt,
+                        self.stats.max_speed as f32,
                     ),
                     &mut self.cg_scratch,
                 ),
