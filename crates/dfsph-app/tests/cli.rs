@@ -437,6 +437,12 @@ fn run_help_says_what_an_existing_directory_gets() {
             && help.contains("must not be a symbolic link"),
         "{help}"
     );
+    // And its exit codes for a failed write and a signal.
+    assert!(
+        help.contains("with 74 when a write fails (a full disk), naming the file")
+            && help.contains("with 130 when stopped by Ctrl-C, SIGTERM or SIGHUP"),
+        "{help}"
+    );
 }
 
 #[test]
