@@ -297,10 +297,10 @@ fn a_shorter_rerun_removes_our_old_frames_and_keeps_the_users() {
         [
             "scene.json",
             "stats.csv",
+            "particles/index.csv",
             "particles/00000.csv",
             "particles/00001.csv",
-            "particles/00002.csv",
-            "particles/index.csv"
+            "particles/00002.csv"
         ]
     );
 }
