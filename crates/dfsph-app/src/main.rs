@@ -141,9 +141,13 @@ fn view(args: ViewArgs) -> Result<(), Failure> {
 fn run(args: RunArgs) -> Result<(), Failure> {
     // Everything is validated before the output directory is touched.
     let scene = load_scene(&args.scene).map_err(Failure::input)?;
-    let recording = match &args.replay {
-        Some(path) => Some(replay::load(path, &args.scene, &scene).map_err(Failure::input)?),
-        None => None,
+    let (recording, cut_short) = match &args.replay {
+        Some(path) => {
+            let (recording, warning) =
+                replay::load(path, &args.scene, &scene).map_err(Failure::input)?;
+            (Some(recording), warning)
+        }
+        None => (None, None),
     };
     // A replay runs with the recording's thread count unless told otherwise: results are
     // bit-identical only for the same count. The header's count is bounded
@@ -167,6 +171,13 @@ fn run(args: RunArgs) -> Result<(), Failure> {
     output::check_output_dir(&args.out).map_err(Failure::input)?;
     let sim = Simulation::new(&scene)
         .map_err(|e| Failure::input(format!("scene `{}`: {e}", args.scene)))?;
+    if let Some(warning) = cut_short {
+        let _ = writeln!(
+            std::io::stderr(),
+            "warning: {}",
+            terminal_safe(&one_line(&warning))
+        );
+    }
     output::create_output_dir(&args.out).map_err(Failure::input)?;
     interrupt::install();
 
