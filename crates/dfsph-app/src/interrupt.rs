@@ -1,13 +1,16 @@
-//! Ctrl-C (SIGINT) and SIGTERM: the first one asks a running `run` or `stress` to stop after
-//! the step in progress, so it can finish its files (the last snapshot, `index.csv`,
-//! `stats.csv`, the recording's end line) and exit with code 130; a second one ends the
-//! process at once.
+//! Ctrl-C (SIGINT), SIGTERM and SIGHUP (the terminal closed): the first one asks a running
+//! `run` or `stress` to stop after the step in progress, so it can finish its files (the last
+//! snapshot, `particles.pvd`, the recording's end line) and exit with code 130; a second one
+//! ends the process at once. Either way the statistics, probe readings and frame index of every
+//! completed step are already on disk (they are appended line by line), and only a snapshot
+//! being written when the second signal came is lost (its `NAME.tmp`, removed by the next run).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
 static REQUESTED: AtomicBool = AtomicBool::new(false);
 
-/// Exit code of a run stopped by Ctrl-C (128 + SIGINT, as shells report it).
+/// Exit code of a run stopped by Ctrl-C, SIGTERM or SIGHUP (128 + SIGINT, as shells report
+/// Ctrl-C).
 pub const EXIT_CODE: u8 = 130;
 
 /// Install the handlers (Unix; elsewhere Ctrl-C keeps its default meaning).
@@ -26,11 +29,12 @@ pub fn install() {
         unsafe {
             libc::signal(libc::SIGINT, handler);
             libc::signal(libc::SIGTERM, handler);
+            libc::signal(libc::SIGHUP, handler);
         }
     }
 }
 
-/// Has Ctrl-C (or SIGTERM) been received?
+/// Has Ctrl-C (or SIGTERM, SIGHUP) been received?
 pub fn requested() -> bool {
     REQUESTED.load(Ordering::SeqCst)
 }

@@ -13,9 +13,10 @@
 //!
 //! Exit codes: 0 success; 2 bad arguments or scene (nothing written), or a `run` whose
 //! simulation produced non-finite values or clamped particles back into the tank (output
-//! written); 1 any other failure (I/O while writing, the viewer, a failed
-//! validation check, a `stress` violation, a replay that diverged from its recording); 130
-//! stopped by Ctrl-C (files complete up to the last step).
+//! written); 74 an I/O error (a write failed: full disk, ...; what was completed is kept);
+//! 1 any other failure (the viewer, a failed validation check, a `stress` violation, a replay
+//! that diverged from its recording); 130 stopped by Ctrl-C, SIGTERM or SIGHUP (files complete
+//! up to the last step).
 
 mod bench;
 mod cli;
@@ -30,6 +31,7 @@ mod stress;
 mod validate;
 mod view;
 
+use std::io::Write;
 use std::process::ExitCode;
 
 use clap::Parser;
@@ -53,14 +55,22 @@ impl Failure {
         }
     }
 
-    /// Anything else: exit code 1.
+    /// Anything else: exit code [`IO_ERROR`] when a read or write failed (a full disk), 1
+    /// otherwise.
     fn runtime(error: anyhow::Error) -> Self {
+        let io = error
+            .chain()
+            .any(|e| e.downcast_ref::<std::io::Error>().is_some());
         Self {
-            code: 1,
+            code: if io { IO_ERROR } else { 1 },
             message: format!("{error:#}"),
         }
     }
 }
+
+/// Exit code of a command stopped by an I/O error (a full disk, a file that cannot be
+/// written): `EX_IOERR` of sysexits.h.
+const IO_ERROR: u8 = 74;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -87,7 +97,13 @@ fn main() -> ExitCode {
         Err(f) => {
             // An empty message: the command already said why (`stress`'s summary line).
             if !f.message.is_empty() {
-                eprintln!("error: {}", terminal_safe(&one_line(&f.message)));
+                // Not eprintln!: after SIGHUP the terminal may be gone, and a failed print
+                // must not turn a clean stop into a panic.
+                let _ = writeln!(
+                    std::io::stderr(),
+                    "error: {}",
+                    terminal_safe(&one_line(&f.message))
+                );
             }
             ExitCode::from(f.code)
         }
@@ -114,15 +130,24 @@ fn view(args: ViewArgs) -> Result<(), Failure> {
     if let Some(dir) = &args.save_on_exit {
         output::check_output_dir(dir).map_err(Failure::input)?;
     }
+    // Before the display is looked for: a FIFO would block the viewer's start, a device
+    // would swallow the recording.
+    if let Some(path) = &args.record {
+        scene_arg::check_output_file(path, "--record").map_err(Failure::input)?;
+    }
     view::open(scene, args.exit_after, args.save_on_exit, args.record).map_err(Failure::runtime)
 }
 
 fn run(args: RunArgs) -> Result<(), Failure> {
     // Everything is validated before the output directory is touched.
     let scene = load_scene(&args.scene).map_err(Failure::input)?;
-    let recording = match &args.replay {
-        Some(path) => Some(replay::load(path, &args.scene, &scene).map_err(Failure::input)?),
-        None => None,
+    let (recording, cut_short) = match &args.replay {
+        Some(path) => {
+            let (recording, warning) =
+                replay::load(path, &args.scene, &scene).map_err(Failure::input)?;
+            (Some(recording), warning)
+        }
+        None => (None, None),
     };
     // A replay runs with the recording's thread count unless told otherwise: results are
     // bit-identical only for the same count. The header's count is bounded
@@ -146,6 +171,13 @@ fn run(args: RunArgs) -> Result<(), Failure> {
     output::check_output_dir(&args.out).map_err(Failure::input)?;
     let sim = Simulation::new(&scene)
         .map_err(|e| Failure::input(format!("scene `{}`: {e}", args.scene)))?;
+    if let Some(warning) = cut_short {
+        let _ = writeln!(
+            std::io::stderr(),
+            "warning: {}",
+            terminal_safe(&one_line(&warning))
+        );
+    }
     output::create_output_dir(&args.out).map_err(Failure::input)?;
     interrupt::install();
 
@@ -158,18 +190,29 @@ fn run(args: RunArgs) -> Result<(), Failure> {
         out: args.out,
         png_width: args.png_width,
     };
+    // A failed write (a full disk) stops the run with one line naming the file; what was
+    // completed stays (docs: `stats.csv` has every completed step).
+    let kept = |e: anyhow::Error| {
+        let mut f = Failure::runtime(e);
+        f.message.push_str(&format!(
+            "; the completed output is kept in `{}`",
+            plan.out.display()
+        ));
+        f
+    };
     let (outcome, replayed) = match &recording {
         Some(rec) => {
             let (outcome, report) =
-                replay::execute(&plan, sim, rec, args.until.is_some()).map_err(Failure::runtime)?;
+                replay::execute(&plan, sim, rec, args.until.is_some()).map_err(kept)?;
             (outcome, Some(report))
         }
-        None => (run::execute(&plan, sim).map_err(Failure::runtime)?, None),
+        None => (run::execute(&plan, sim).map_err(kept)?, None),
     };
-    match &replayed {
-        Some(r) => println!("{}; {}", terminal_safe(&outcome.summary(&plan.out)), r.note),
-        None => println!("{}", terminal_safe(&outcome.summary(&plan.out))),
-    }
+    let summary = terminal_safe(&outcome.summary(&plan.out));
+    let _ = match &replayed {
+        Some(r) => writeln!(std::io::stdout(), "{summary}; {}", r.note),
+        None => writeln!(std::io::stdout(), "{summary}"),
+    };
     if outcome.interrupted {
         return Err(Failure {
             code: interrupt::EXIT_CODE,

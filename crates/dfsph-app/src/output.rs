@@ -9,6 +9,11 @@
 //! DIR/.dfsph2d-manifest       every file above that this run wrote, one per line
 //! ```
 //!
+//! What a run completed survives however it stops (SIGKILL, a full disk): `stats.csv`,
+//! `probes.csv` and `index.csv` grow one complete line at a time, on disk at once; snapshots,
+//! `scene.json` and `particles.pvd` are written to `NAME.tmp`, synced and renamed, and a
+//! frame is listed in `index.csv` and `particles.pvd` only once all its files are complete.
+//!
 //! A run removes only what an earlier run of ours wrote: the files its manifest lists (and
 //! their `NAME.tmp`, left by a killed run), nothing else; so no `particles.pvd` or
 //! `probes.csv` of an earlier run outlives a run that does not write one. A name is recorded
@@ -201,32 +206,59 @@ fn is_frame_file(name: &str) -> bool {
         && matches!(ext, "csv" | "vtu" | "png")
 }
 
-/// Writes numbered snapshots in the chosen formats and, at the end, the index.
+/// Writes numbered snapshots in the chosen formats, each followed by its row in `index.csv`
+/// (appended, on disk at once) and, for VTK output, a new `particles.pvd` (rewritten
+/// atomically), so the index of a run stopped at any point lists exactly its complete frames.
 pub struct FrameWriter {
     dir: PathBuf,
     formats: Vec<Format>,
     frames: Vec<FrameRecord>,
+    index: dfsph_io::AppendFile,
+    /// Frames listed in the `particles.pvd` on disk.
+    pvd_frames: usize,
     png: RenderOptions,
     /// Step of the last frame written.
     last_step: Option<u64>,
 }
 
+/// Frames up to which `particles.pvd` is rewritten after every frame; past it, after every
+/// 1/[`PVD_GROWTH`] more frames (and at the end), so a run of a million frames does not
+/// rewrite a file of a million entries a million times.
+const PVD_EVERY_FRAME_UP_TO: usize = 1024;
+const PVD_GROWTH: usize = 64;
+
 impl FrameWriter {
     /// Frames go to `out/particles`; `formats` is deduplicated and ordered csv, vtk, png.
-    pub fn new(out: &Path, formats: &[Format], scene: &Scene, png_width: u32) -> Self {
+    /// Creates `out/particles/index.csv` with its header.
+    pub fn create(
+        out: &Path,
+        formats: &[Format],
+        scene: &Scene,
+        png_width: u32,
+        manifest: &mut Manifest,
+    ) -> Result<Self> {
         let mut formats = formats.to_vec();
         formats.sort();
         formats.dedup();
-        Self {
-            dir: out.join(PARTICLES_DIR),
+        let dir = out.join(PARTICLES_DIR);
+        manifest.record(&format!("{PARTICLES_DIR}/index.csv"))?;
+        let mut index = dfsph_io::AppendFile::create(dir.join("index.csv"))?;
+        index.append(dfsph_io::INDEX_HEADER)?;
+        if formats.contains(&Format::Vtk) {
+            manifest.record(&format!("{PARTICLES_DIR}/particles.pvd"))?;
+        }
+        Ok(Self {
+            dir,
             formats,
             frames: Vec::new(),
+            index,
+            pvd_frames: 0,
             png: RenderOptions {
                 width: png_width,
                 speed_max: speed_scale(scene),
             },
             last_step: None,
-        }
+        })
     }
 
     /// The simulation was rebuilt (a reset in a replay): its step count starts again, so
@@ -263,29 +295,41 @@ impl FrameWriter {
             }
         }
         let first = self.formats.first().copied().unwrap_or(Format::Csv);
-        self.frames.push(FrameRecord {
+        let record = FrameRecord {
             frame,
             time: snapshot.time,
             file: format!("{stem}.{}", first.extension()),
-        });
+        };
+        // Listed only once every file of the frame is complete.
+        self.index.append(&dfsph_io::frame_index_row(&record))?;
+        self.frames.push(record);
         self.last_step = Some(step);
+        let n = self.frames.len();
+        if n <= PVD_EVERY_FRAME_UP_TO || n - self.pvd_frames >= n / PVD_GROWTH {
+            self.write_pvd()?;
+        }
         Ok(())
     }
 
-    /// Write `index.csv` (and `particles.pvd` for VTK output).
-    pub fn finish(&self, manifest: &mut Manifest) -> Result<()> {
-        manifest.record(&format!("{PARTICLES_DIR}/index.csv"))?;
-        dfsph_io::write_frame_index(self.dir.join("index.csv"), &self.frames)?;
-        if self.formats.contains(&Format::Vtk) {
-            manifest.record(&format!("{PARTICLES_DIR}/particles.pvd"))?;
-            let series: Vec<(f64, String)> = self
-                .frames
-                .iter()
-                .map(|f| (f.time, format!("{:05}.vtu", f.frame)))
-                .collect();
-            dfsph_io::write_pvd(self.dir.join("particles.pvd"), &series)?;
+    /// Rewrite `particles.pvd` (VTK output only) with every frame so far.
+    fn write_pvd(&mut self) -> Result<()> {
+        if !self.formats.contains(&Format::Vtk) || self.pvd_frames == self.frames.len() {
+            return Ok(());
         }
+        let series: Vec<(f64, String)> = self
+            .frames
+            .iter()
+            .map(|f| (f.time, format!("{:05}.vtu", f.frame)))
+            .collect();
+        dfsph_io::write_pvd(self.dir.join("particles.pvd"), &series)?;
+        self.pvd_frames = self.frames.len();
         Ok(())
+    }
+
+    /// Bring `particles.pvd` up to date and make `index.csv` durable.
+    pub fn finish(mut self) -> Result<()> {
+        self.write_pvd()?;
+        self.index.finish()
     }
 }
 

@@ -7,19 +7,18 @@
 //! ```
 //!
 //! The first row is the initial state (t = 0). Pressure probes are in Pa, water-level gauges
-//! in m above the tank floor. Written atomically when the run ends; absent when the scene has
-//! no probes.
+//! in m above the tank floor. Each row is on disk as soon as it is written (a run stopped at
+//! any point keeps its complete rows); absent when the scene has no probes.
 
-use std::io::Write;
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use dfsph::{probes, Simulation};
-use dfsph_io::AtomicFile;
+use dfsph_io::AppendFile;
 
-/// Streams probe readings to `probes.csv`.
+/// Appends probe readings to `probes.csv`.
 pub struct ProbesCsvWriter {
-    file: AtomicFile,
+    file: AppendFile,
 }
 
 impl ProbesCsvWriter {
@@ -30,14 +29,13 @@ impl ProbesCsvWriter {
         if probes.is_empty() {
             return Ok(None);
         }
-        let mut file = AtomicFile::create(path)?;
+        let mut file = AppendFile::create(path)?;
         let mut header = String::from("time");
         for p in probes {
             header.push(',');
             header.push_str(p.name());
         }
-        writeln!(file, "{header}")
-            .with_context(|| format!("cannot write `{}`", file.path().display()))?;
+        file.append(&header)?;
         Ok(Some(Self { file }))
     }
 
@@ -48,12 +46,11 @@ impl ProbesCsvWriter {
             row.push(',');
             row.push_str(&v.to_string());
         }
-        writeln!(self.file, "{row}")
-            .with_context(|| format!("cannot write `{}`", self.file.path().display()))
+        self.file.append(&row)
     }
 
-    /// Flush and move the file into place.
+    /// Make the file durable (`fsync`).
     pub fn finish(self) -> Result<()> {
-        self.file.commit()
+        self.file.finish()
     }
 }

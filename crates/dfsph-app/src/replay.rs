@@ -18,8 +18,14 @@ const MAX_RECORDING_BYTES: u64 = 256 * 1024 * 1024;
 
 /// Read and check the recording at `path` for a run of `scene` (named `scene_arg` on the
 /// command line): the recording must have been made on the same scene, up to its name,
-/// description and particle budget. Every failure is one line naming the file.
-pub fn load(path: &Path, scene_arg: &str, scene: &Scene) -> Result<Recording, String> {
+/// description and particle budget. Every failure is one line naming the file. A recording
+/// whose last line was cut short (a full disk, a killed recorder) loads without that line,
+/// with a warning saying where it stops.
+pub fn load(
+    path: &Path,
+    scene_arg: &str,
+    scene: &Scene,
+) -> Result<(Recording, Option<String>), String> {
     let shown = path.display();
     let bytes = read_input_file(path, MAX_RECORDING_BYTES).map_err(|refusal| match refusal {
         InputRefusal::Missing => format!("recording `{shown}` does not exist"),
@@ -35,9 +41,34 @@ pub fn load(path: &Path, scene_arg: &str, scene: &Scene) -> Result<Recording, St
         ),
         InputRefusal::Io(e) => format!("cannot read recording `{shown}`: {e}"),
     })?;
-    let text = String::from_utf8(bytes)
-        .map_err(|_| format!("recording `{shown}` is not UTF-8 text (expected JSON lines)"))?;
-    let recording = Recording::parse(&text).map_err(|e| format!("recording `{shown}`: {e}"))?;
+    let text = match String::from_utf8(bytes) {
+        Ok(text) => text,
+        // Cut in the middle of a character: the line is cut short, which parsing reports.
+        Err(e) if e.utf8_error().error_len().is_none() => {
+            let valid = e.utf8_error().valid_up_to();
+            let mut bytes = e.into_bytes();
+            bytes.truncate(valid);
+            String::from_utf8(bytes).expect("valid up to here")
+        }
+        Err(_) => {
+            return Err(format!(
+                "recording `{shown}` is not UTF-8 text (expected JSON lines)"
+            ))
+        }
+    };
+    let (recording, cut) =
+        Recording::parse_cut_short(&text).map_err(|e| format!("recording `{shown}`: {e}"))?;
+    let warning = cut.map(|cut| {
+        format!(
+            "recording `{shown}` is cut short: line {} is incomplete (the disk filled up or the \
+             recorder was stopped while writing it); replaying the {} complete lines before it, \
+             {} actions up to step {}",
+            cut.line,
+            cut.line - 1,
+            recording.entries.len(),
+            recording.steps()
+        )
+    });
     if let Some(key) = first_difference(&recording.header.scene, scene) {
         return Err(format!(
             "recording `{shown}` was made on a different scene than `{scene_arg}`: `{key}` differs \
@@ -45,7 +76,7 @@ pub fn load(path: &Path, scene_arg: &str, scene: &Scene) -> Result<Recording, St
             recording.header.scene.name
         ));
     }
-    Ok(recording)
+    Ok((recording, warning))
 }
 
 /// The first top-level key in which two scenes differ, ignoring `name`, `description` and
@@ -94,11 +125,12 @@ impl ReplayDriver {
         }
     }
 
-    /// Apply every action due now; true when one of them rebuilt the simulation.
+    /// Apply every action due now; true when one of them rebuilt the simulation. Stops
+    /// early on Ctrl-C: a recording may hold a million actions at one step.
     fn apply_due(&mut self, sim: &mut Simulation) -> bool {
         let mut reset = false;
         while let Some(e) = self.entries.get(self.next) {
-            if e.step > self.done {
+            if e.step > self.done || crate::interrupt::requested() {
                 break;
             }
             let outcome = sim.apply(&e.action);
@@ -131,7 +163,9 @@ impl Driver for ReplayDriver {
             return Ok(false);
         }
         let reset = self.apply_due(sim);
-        self.final_fingerprint = Some(fingerprint_hex(sim));
+        if !crate::interrupt::requested() {
+            self.final_fingerprint = Some(fingerprint_hex(sim));
+        }
         Ok(reset)
     }
 

@@ -44,7 +44,8 @@ pub struct RunOutcome {
     pub non_finite: u64,
     /// The first step that produced non-finite values, and its time; the run stopped there.
     pub broke_at: Option<(u64, f64)>,
-    /// Ctrl-C (or SIGTERM) stopped the run early; the files are complete up to that step.
+    /// Ctrl-C (or SIGTERM, SIGHUP) stopped the run early; the files are complete up to that
+    /// step.
     pub interrupted: bool,
 }
 
@@ -131,7 +132,13 @@ pub fn execute_with(
     if let Some(p) = probes.as_mut() {
         p.push(&sim)?;
     }
-    let mut frames = FrameWriter::new(&plan.out, &plan.formats, &plan.scene, plan.png_width);
+    let mut frames = FrameWriter::create(
+        &plan.out,
+        &plan.formats,
+        &plan.scene,
+        plan.png_width,
+        &mut manifest,
+    )?;
     let mut schedule = SnapshotSchedule::new(plan.every);
     frames.write(&sim, &mut manifest)?;
 
@@ -150,6 +157,12 @@ pub fn execute_with(
             frames.new_epoch();
             schedule = SnapshotSchedule::new(plan.every);
             frames.write(&sim, &mut manifest)?;
+        }
+        // The driver stops applying a long run of actions on Ctrl-C (a recording of a
+        // million `emit`s): stop before stepping.
+        if crate::interrupt::requested() {
+            interrupted = true;
+            break;
         }
         let s = *sim.step();
         stats.push(&s)?;
@@ -178,8 +191,10 @@ pub fn execute_with(
     if !interrupted && driver.after_last_step(&mut sim)? {
         frames.new_epoch();
     }
+    interrupted |= crate::interrupt::requested();
     frames.write(&sim, &mut manifest)?;
-    frames.finish(&mut manifest)?;
+    let frame_count = frames.count();
+    frames.finish()?;
     stats.finish()?;
     if let Some(p) = probes {
         p.finish()?;
@@ -192,7 +207,7 @@ pub fn execute_with(
         steps: sim.step_count(),
         time: sim.time(),
         wall: started.elapsed(),
-        frames: frames.count(),
+        frames: frame_count,
         n_fluid: last.n_fluid,
         n_boundary: last.n_boundary,
         clamped: sim.total_clamped(),

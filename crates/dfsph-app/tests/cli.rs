@@ -297,10 +297,10 @@ fn a_shorter_rerun_removes_our_old_frames_and_keeps_the_users() {
         [
             "scene.json",
             "stats.csv",
+            "particles/index.csv",
             "particles/00000.csv",
             "particles/00001.csv",
-            "particles/00002.csv",
-            "particles/index.csv"
+            "particles/00002.csv"
         ]
     );
 }
@@ -435,6 +435,12 @@ fn run_help_says_what_an_existing_directory_gets() {
         help.contains("removes the files an earlier run wrote there")
             && help.contains("every other file is kept")
             && help.contains("must not be a symbolic link"),
+        "{help}"
+    );
+    // And its exit codes for a failed write and a signal.
+    assert!(
+        help.contains("with 74 when a write fails (a full disk), naming the file")
+            && help.contains("with 130 when stopped by Ctrl-C, SIGTERM or SIGHUP"),
         "{help}"
     );
 }

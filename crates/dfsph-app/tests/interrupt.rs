@@ -1,6 +1,6 @@
-//! Ctrl-C during `dfsph2d run`: the run stops after the step in progress, finishes its files
-//! and exits with 130; every snapshot on disk is complete, the index lists exactly them, and
-//! no temporary file is left behind.
+//! Ctrl-C (or SIGHUP, the terminal closing) during `dfsph2d run`: the run stops after the
+//! step in progress, finishes its files and exits with 130; every snapshot on disk is
+//! complete, the index lists exactly them, and no temporary file is left behind.
 
 #![cfg(unix)]
 
@@ -24,6 +24,16 @@ fn all_files(dir: &Path, out: &mut Vec<String>) {
 
 #[test]
 fn ctrl_c_leaves_only_complete_files() {
+    stops_cleanly_on("INT");
+}
+
+#[test]
+fn sighup_stops_like_ctrl_c() {
+    stops_cleanly_on("HUP");
+}
+
+/// Send `signal` (a name for `kill -SIGNAL`) to a run that is writing frames.
+fn stops_cleanly_on(signal: &str) {
     let tmp = tempfile::tempdir().unwrap();
     let scene = tmp.path().join("coarse.json");
     std::fs::write(&scene, r#"{"particle_radius": 0.05}"#).unwrap();
@@ -51,14 +61,18 @@ fn ctrl_c_leaves_only_complete_files() {
         sleep(Duration::from_millis(20));
     }
     let status = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
+        .args([&format!("-{signal}"), &child.id().to_string()])
         .status()
         .unwrap();
     assert!(status.success());
     let out = child.wait_with_output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(130), "{stdout}{stderr}");
+    assert_eq!(
+        out.status.code(),
+        Some(130),
+        "SIG{signal}: {stdout}{stderr}"
+    );
     assert_eq!(stdout.lines().count(), 1, "{stdout}");
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(

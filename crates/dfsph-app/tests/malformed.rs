@@ -424,6 +424,17 @@ fn a_fifo_or_device_is_refused_as_a_recording_without_blocking() {
             &format!("stress {shown}"),
         );
         assert!(text(&out.stderr).contains(&format!("--record `{shown}`")));
+        // `view --record` the same, refused before any window is opened (with no display
+        // here, a test of the order: the recording is checked first).
+        let args = ["view", scene.to_str().unwrap(), "--record", shown];
+        let out = dfsph2d_within_30s(&args).unwrap_or_else(|| panic!("view {shown} hung"));
+        assert_refused(
+            &out,
+            "is not a regular file (a FIFO, socket or device); give the path of a file",
+            &out_dir,
+            &format!("view {shown}"),
+        );
+        assert!(text(&out.stderr).contains(&format!("--record `{shown}`")));
     }
     assert!(fifo.exists(), "the FIFO is left where it was");
 }

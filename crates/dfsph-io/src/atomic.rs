@@ -47,19 +47,27 @@ impl AtomicFile {
         &self.target
     }
 
-    /// Flush everything and rename the temporary file over the target.
+    /// Flush everything, make it durable (`fsync`) and rename the temporary file over the
+    /// target. On any failure the temporary file is removed and the target left as it was.
     pub fn commit(mut self) -> Result<()> {
-        let writer = self.writer.take().expect("writer present until commit");
+        // The writer stays in `self` until the data is on disk: if the flush or the sync
+        // fails (a full disk), `Drop` still sees it and removes the temporary file.
+        let writer = self.writer.as_mut().expect("writer present until commit");
         writer
-            .into_inner()
-            .map_err(|e| e.into_error())
+            .flush()
             .with_context(|| format!("cannot write `{}`", self.tmp.display()))?;
-        std::fs::rename(&self.tmp, &self.target).with_context(|| {
-            format!(
+        writer
+            .get_ref()
+            .sync_all()
+            .with_context(|| format!("cannot write `{}`", self.tmp.display()))?;
+        drop(self.writer.take());
+        std::fs::rename(&self.tmp, &self.target).map_err(|e| {
+            let _ = std::fs::remove_file(&self.tmp);
+            anyhow::Error::new(e).context(format!(
                 "cannot rename `{}` to `{}`",
                 self.tmp.display(),
                 self.target.display()
-            )
+            ))
         })
     }
 }
@@ -127,6 +135,25 @@ mod tests {
         assert!(err.is_err());
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
         assert!(!tmp_path(&path).exists());
+    }
+
+    /// A failed final flush (the data fits the buffer, the disk is full when it is written
+    /// out): no `.tmp` is left and the target keeps its old content.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn failed_final_flush_leaves_no_tmp() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.txt");
+        std::fs::write(&path, "old").unwrap();
+        // `a.txt.tmp` opens /dev/full, where every write fails with ENOSPC.
+        std::os::unix::fs::symlink("/dev/full", tmp_path(&path)).unwrap();
+        let mut file = AtomicFile::create(&path).unwrap();
+        file.write_all(b"new, small enough to stay in the buffer")
+            .unwrap();
+        let msg = format!("{:#}", file.commit().unwrap_err());
+        assert!(msg.contains("a.txt.tmp`: No space left on device"), "{msg}");
+        assert!(std::fs::symlink_metadata(tmp_path(&path)).is_err());
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
     }
 
     #[test]

@@ -45,12 +45,18 @@ pub struct FrameRecord {
     pub file: String,
 }
 
-/// Write the frame index: [`INDEX_HEADER`], then one row per frame.
+/// One row of the frame index (without the newline): `frame,time,file`.
+pub fn frame_index_row(f: &FrameRecord) -> String {
+    format!("{},{},{}", f.frame, f.time, f.file)
+}
+
+/// Write the frame index at once: [`INDEX_HEADER`], then one row per frame. (`dfsph2d run`
+/// appends the rows as the frames are written instead, with [`crate::AppendFile`].)
 pub fn write_frame_index(path: impl AsRef<Path>, frames: &[FrameRecord]) -> Result<()> {
     write_atomic(path, |w| {
         writeln!(w, "{INDEX_HEADER}")?;
         for f in frames {
-            writeln!(w, "{},{},{}", f.frame, f.time, f.file)?;
+            writeln!(w, "{}", frame_index_row(f))?;
         }
         Ok(())
     })

@@ -11,9 +11,12 @@
 //! - [`render`]: a CPU rasteriser (tiny-skia) that draws a frame to PNG, fluid coloured by
 //!   speed with a [`colormap`] and a legend.
 //!
-//! Every file is written atomically ([`atomic`]): to `NAME.tmp` in the same directory, then
-//! renamed, so a reader never sees a half-written file.
+//! Snapshots and other whole files are written atomically ([`atomic`]): to `NAME.tmp` in the
+//! same directory, synced, then renamed, so a reader never sees a half-written file. Files that
+//! grow during a run (statistics, the frame index) are appended one complete line at a time
+//! ([`append`]), so a run stopped at any point keeps everything it completed.
 
+pub mod append;
 pub mod atomic;
 pub mod colormap;
 pub mod csv;
@@ -22,8 +25,12 @@ pub mod render;
 pub mod stats;
 pub mod vtk;
 
+pub use append::AppendFile;
 pub use atomic::{write_atomic, AtomicFile};
-pub use csv::{write_frame_index, write_snapshot_csv, FrameRecord, SNAPSHOT_HEADER};
+pub use csv::{
+    frame_index_row, write_frame_index, write_snapshot_csv, FrameRecord, INDEX_HEADER,
+    SNAPSHOT_HEADER,
+};
 pub use render::{render_frame, write_png, RenderGeometry, RenderOptions};
 pub use stats::{StatsCsvWriter, STATS_HEADER};
 pub use vtk::{write_pvd, write_vtu};

@@ -111,6 +111,14 @@ pub struct Recording {
     pub end: Option<End>,
 }
 
+/// Where a recording that was cut short stops: its last line was only partly written (the
+/// disk filled up, or the recorder was killed in the middle of a line).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CutShort {
+    /// The incomplete line, 1-based; the lines before it are complete.
+    pub line: usize,
+}
+
 /// Why a recording could not be read: the 1-based line and the problem.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RecordingError {
@@ -140,7 +148,26 @@ impl Recording {
     /// a scene file), every action line, non-decreasing steps, and nothing after the end line.
     /// Blank lines are ignored.
     pub fn parse(text: &str) -> Result<Self, RecordingError> {
+        Self::parse_inner(text, false).map(|(recording, _)| recording)
+    }
+
+    /// [`Recording::parse`], except that a last line cut short (no newline after it, and its
+    /// JSON ends before it is complete) is left out and reported, instead of refusing the
+    /// whole recording: what a session recorded up to a full disk or a kill still replays.
+    /// Any other malformed line, and a header cut short, is still an error.
+    pub fn parse_cut_short(text: &str) -> Result<(Self, Option<CutShort>), RecordingError> {
+        Self::parse_inner(text, true)
+    }
+
+    fn parse_inner(
+        text: &str,
+        allow_cut: bool,
+    ) -> Result<(Self, Option<CutShort>), RecordingError> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        // The line that may have been cut: the last one, when no newline ends it.
+        let cut_candidate =
+            (allow_cut && !text.is_empty() && !text.ends_with('\n')).then(|| text.lines().count());
+        let mut cut = None;
         let mut lines = text
             .lines()
             .enumerate()
@@ -175,6 +202,10 @@ impl Recording {
                         "expected an object {{\"step\": N, \"action\": ...}}, got {}",
                         kind(&other)
                     )))
+                }
+                Err(e) if e.is_eof() && Some(number) == cut_candidate => {
+                    cut = Some(CutShort { line: number });
+                    break;
                 }
                 Err(e) => return Err(err(format!("not valid JSON: {e}"))),
             };
@@ -217,11 +248,12 @@ impl Recording {
             }
             entries.push(Entry { step, action });
         }
-        Ok(Self {
+        let recording = Self {
             header,
             entries,
             end: end.map(|(_, e)| e),
-        })
+        };
+        Ok((recording, cut))
     }
 
     /// The recording as text, in the format [`Recording::parse`] reads.
@@ -442,6 +474,38 @@ mod tests {
         let mut no_end = rec.clone();
         no_end.end = None;
         assert_eq!(Recording::parse(&no_end.to_text()).unwrap().steps(), 7);
+    }
+
+    #[test]
+    fn a_last_line_cut_short_is_left_out_and_reported() {
+        let good = sample().to_text();
+        let lines: Vec<&str> = good.lines().collect();
+        // Cut in the middle of line 4 (the reset), as a full disk leaves it: lines 1-3 replay.
+        let cut_at = good.find(lines[3]).unwrap() + lines[3].len() / 2;
+        let text = &good[..cut_at];
+        assert!(Recording::parse(text)
+            .unwrap_err()
+            .to_string()
+            .starts_with("line 4: not valid JSON: EOF while parsing"));
+        let (rec, cut) = Recording::parse_cut_short(text).unwrap();
+        assert_eq!(cut, Some(CutShort { line: 4 }));
+        assert_eq!(rec.entries, sample().entries[..2]);
+        assert_eq!((rec.steps(), rec.end), (3, None));
+        // A cut end line: every action replays, the session's end is unknown.
+        let text = &good[..good.len() - 10];
+        let (rec, cut) = Recording::parse_cut_short(text).unwrap();
+        assert_eq!(cut, Some(CutShort { line: 6 }));
+        assert_eq!((rec.entries.len(), rec.end), (4, None));
+        // Complete recordings, with or without their last newline, are not cut.
+        assert_eq!(Recording::parse_cut_short(&good).unwrap().1, None);
+        assert_eq!(Recording::parse_cut_short(good.trim_end()).unwrap().1, None);
+        // A malformed line that is not the cut last line stays an error, as does a cut header
+        // and a complete last line that is not JSON.
+        let broken = good.replacen(lines[2], &lines[2][..10], 1);
+        assert!(Recording::parse_cut_short(&broken[..cut_at - 20]).is_err());
+        assert!(Recording::parse_cut_short(&lines[0][..40]).is_err());
+        assert!(Recording::parse_cut_short(&format!("{}\n{{\"step\": 1}}x", lines[0])).is_err());
+        assert!(Recording::parse_cut_short(&format!("{}\n{{\"step\": 1", lines[0])).is_ok());
     }
 
     #[test]
