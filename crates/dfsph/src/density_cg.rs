@@ -101,11 +101,16 @@ fn dot3(a: &[f32], b: &[f32], m: &[f32]) -> f64 {
 }
 
 /// Density solve by preconditioned conjugate gradients. Leaves the step's p/ρ0 in
-/// `fluid.pressure_over_rho0` and the final rates in `scratch.rate`.
+/// `fluid.pressure_over_rho0` and the final rates in `scratch.rate`. The pressure is the
+/// physical one, `c·κ/Δt` with c the lattice's `gradient_consistency`
+/// ([`crate::packing::gradient_consistency`]): the SPH gradient recovers c times a field's
+/// gradient, so a stiffness field κ pushes like the continuous pressure `c·κ/Δt`; at rest
+/// it reads ρ0·g·(H − y).
 #[allow(clippy::too_many_arguments)]
 pub fn density_solve(
     volume: f32,
     dt: f32,
+    gradient_consistency: f32,
     max_correction: f32,
     warm_start: bool,
     fluid: &mut FluidParticles,
@@ -138,7 +143,7 @@ pub fn density_solve(
         .with_min_len(LIGHT_PASS_MIN_ITEMS)
         .for_each(|(i, k)| {
             *k = if warm_start && inside(i) {
-                k.max(0.0) * dt
+                k.max(0.0) * dt / gradient_consistency
             } else {
                 0.0
             };
@@ -262,7 +267,7 @@ pub fn density_solve(
     total
         .par_iter_mut()
         .with_min_len(LIGHT_PASS_MIN_ITEMS)
-        .for_each(|k| *k /= dt);
+        .for_each(|k| *k *= gradient_consistency / dt);
     fluid.pressure_over_rho0 = total;
     SolveReport {
         iterations,

@@ -44,12 +44,13 @@ pub struct Viscosity {
 /// * Laplacian viscosity (Morris et al. 1997; Monaghan 2005, 2D so `2(d+2) = 8`):
 ///   `a_i += 8ν Σ_j V_j (v_ij·x_ij)/(|x_ij|² + 0.01h²) ∇W_ij`, and the same against boundary
 ///   particles with their velocity and `ν_b`.
-/// * With `hydrostatic_walls`, the hydrostatic part of the mirrored walls' pressure
+/// * With `hydrostatic_walls: Some(g_s)`, the hydrostatic part of the mirrored walls' pressure
 ///   ([`crate::solver::MIRRORED_WALLS`]; Band et al. 2018, "Pressure boundaries for implicit
 ///   incompressible SPH", pressure extrapolation): the ghost at wall particle b carries
-///   `p_b = p_i + ρ0 g·(x_b − x_i)` rather than `p_i`. In the κ form the extra part,
-///   `Δt g·(x_b − x_i)`, does not depend on the solve's unknowns, so it is an acceleration
-///   `a_i −= Σ_b Ψ_b (g·(x_b − x_i)) ∇W_ib`, and the pressure operator stays symmetric. With it
+///   `κ_b = κ_i + Δt g_s·(x_b − x_i)` rather than `κ_i`, where `g_s` is the slope of the
+///   solve's stiffness field at rest (gravity over the lattice's gradient consistency). The
+///   extra part does not depend on the solve's unknowns, so it is an acceleration
+///   `a_i −= Σ_b Ψ_b (g_s·(x_b − x_i)) ∇W_ib`, and the pressure operator stays symmetric. With it
 ///   ρ0 g (H − y) is the discrete equilibrium next to walls as well: on the lattice the wall
 ///   row's own pressure and the ghosts' gradient together give it the same support against
 ///   gravity as a particle inside the fluid (docs/deep-columns.md).
@@ -61,7 +62,7 @@ pub fn non_pressure_accelerations(
     gravity: Vec2,
     viscosity: Viscosity,
     pointer: Option<PointerForce>,
-    hydrostatic_walls: bool,
+    hydrostatic_walls: Option<Vec2>,
     fluid: &mut FluidParticles,
     boundary: &BoundaryParticles,
     nb: &Neighborhood,
@@ -81,12 +82,12 @@ pub fn non_pressure_accelerations(
         if xsph > 0.0 || lap > 0.0 {
             acc += volume * (xsph * smooth + lap * laplace);
         }
-        if hydrostatic_walls {
+        if let Some(slope) = hydrostatic_walls {
             let r = nb.boundary.range(i);
             let mut push = Vec2::ZERO;
             for (&b, &g) in nb.boundary.of(i).iter().zip(&nb.boundary_grad[r]) {
                 let b = b as usize;
-                push += boundary.volume[b] * gravity.dot(boundary.position[b] - xi) * g;
+                push += boundary.volume[b] * slope.dot(boundary.position[b] - xi) * g;
             }
             acc -= push;
         }

@@ -227,15 +227,18 @@ pub fn tank_face_normal(scene: &Scene, at: Point) -> Option<Vec2> {
 /// Pressure over ρ0, m²/s², with which each fluid particle pushes its neighbours and the
 /// walls in the current step, exactly as the solver applies it (`apply_pressure`): the density
 /// solve's p/ρ0 plus, for DFSPH, the divergence solve's κᵛ/Δt (its impulse spread over the
-/// step; it carries much of an impact). WCSPH applies p/ρ0 divided by (ρ/ρ0)².
+/// step; it carries much of an impact). WCSPH applies p/ρ0 divided by (ρ/ρ0)²; the
+/// conjugate-gradient solve applies its stored pressure over the lattice's gradient
+/// consistency ([`Simulation::pressure_force_scale`]).
 fn pressure_pushes(sim: &Simulation) -> impl Fn(usize) -> f32 + '_ {
+    let force_scale = sim.pressure_force_scale();
     let solver = &sim.scene().solver;
     let dt = sim.stats().dt as f32;
     let use_divergence =
         solver.method == crate::scene::Method::Dfsph && solver.divergence_solve && dt > 0.0;
     let wcsph = solver.method == crate::scene::Method::Wcsph;
     move |i: usize| -> f32 {
-        let p = sim.pressures_over_rho0()[i];
+        let p = sim.pressures_over_rho0()[i] * force_scale;
         let s = sim.density_ratios()[i].max(1.0e-3);
         let p = if wcsph { p / (s * s) } else { p };
         let kv = if use_divergence {

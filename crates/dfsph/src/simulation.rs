@@ -68,6 +68,10 @@ pub struct Simulation {
     pub(crate) spacing: f32,
     /// Volume of one fluid particle V = m/ρ0, m² (chosen so the initial lattice is at ρ0).
     pub(crate) volume: f32,
+    /// [`packing::gradient_consistency`] of the scene's lattice: the pressure force of a field
+    /// p is that of c·p, so the conjugate-gradient solve stores c times its stiffness field as
+    /// the physical pressure.
+    gradient_consistency: f32,
     pub(crate) gravity: Vec2,
     pub(crate) fluid: FluidParticles,
     pub(crate) boundary: BoundaryParticles,
@@ -139,11 +143,24 @@ impl Simulation {
             } else {
                 lattice_kernel_sum(&kernel, d)
             };
+        let gradient_consistency = if hexagonal {
+            packing::hexagonal_gradient_consistency(&kernel, d, volume)
+        } else {
+            let reach = (kernel.support() / d).ceil() as i32 + 1;
+            packing::gradient_consistency(
+                &kernel,
+                volume,
+                (-reach..=reach).flat_map(|j| {
+                    (-reach..=reach).map(move |i| Vec2::new(i as f32 * d, j as f32 * d))
+                }),
+            )
+        };
         let mut sim = Simulation {
             scene: scene.clone(),
             kernel,
             spacing: d,
             volume,
+            gradient_consistency,
             gravity: to_vec2(scene.gravity),
             fluid: FluidParticles::default(),
             boundary: BoundaryParticles::default(),
@@ -426,7 +443,9 @@ impl Simulation {
                 self.gravity,
                 viscosity,
                 self.pointer,
-                conjugate_gradient,
+                // The walls' ghosts continue the solve's stiffness field, whose slope at rest
+                // is g/c (see `gradient_consistency`).
+                conjugate_gradient.then_some(self.gravity / self.gradient_consistency),
                 &mut self.fluid,
                 &self.boundary,
                 &nb,
@@ -442,6 +461,7 @@ impl Simulation {
                 Method::Dfsph if conjugate_gradient => density_cg::density_solve(
                     self.volume,
                     dt,
+                    self.gradient_consistency,
                     solver::max_compression_correction(dt, self.spacing),
                     warm,
                     &mut self.fluid,
@@ -821,6 +841,17 @@ impl Simulation {
     /// [`Self::rest_density`] for pascals.
     pub fn pressures_over_rho0(&self) -> &[f32] {
         &self.fluid.pressure_over_rho0
+    }
+
+    /// What the pressure force of the stored pressures is scaled by: the lattice's gradient
+    /// consistency c for the conjugate-gradient solve, which stores the physical pressure
+    /// c·κ/Δt (see [`crate::density_cg::density_solve`]); 1 for the Jacobi solve and WCSPH.
+    pub fn pressure_force_scale(&self) -> f32 {
+        if self.conjugate_gradient() {
+            1.0 / self.gradient_consistency
+        } else {
+            1.0
+        }
     }
 
     /// Boundary particle positions, m.
