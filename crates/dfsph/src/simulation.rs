@@ -209,6 +209,7 @@ impl Simulation {
             });
             inside_box || obstacle_grid.any_near(p)
         };
+        sim.fluid.reserve(scene.fluid_particle_count());
         for block in scene.fluid.iter().filter(|_| hexagonal) {
             let v = to_vec2(block.velocity);
             let tolerance = scene.tank.edge_tolerance();
@@ -258,6 +259,11 @@ impl Simulation {
 
     pub(crate) fn add_boundary_samples(&mut self, samples: BoundarySamples) {
         let cell = self.spacing * self.spacing;
+        let n = samples.positions.len();
+        self.boundary.position.reserve_exact(n);
+        self.boundary.velocity.reserve_exact(n);
+        self.boundary.volume.reserve_exact(n);
+        self.boundary.body.reserve_exact(n);
         for ((p, b), area) in samples
             .positions
             .into_iter()
