@@ -528,7 +528,15 @@ impl Simulation {
             if displacement < best.0 {
                 best = (displacement, dt);
             }
-            if retries >= MAX_STEP_RETRIES || dt <= min_dt {
+            // A step that would carry a particle more than MAX_STEP_DISPLACEMENT is redone
+            // below the scene's minimum too, as the displacement bound overrides it: a leak
+            // through a wall is worse than a short step.
+            let floor = if displacement > MAX_STEP_DISPLACEMENT {
+                0.0
+            } else {
+                min_dt
+            };
+            if retries >= MAX_STEP_RETRIES || dt <= floor {
                 if best.1 == dt {
                     break report;
                 }
@@ -539,7 +547,7 @@ impl Simulation {
                 settle = true;
             } else {
                 retries += 1;
-                dt = (0.5 * dt).max(min_dt);
+                dt = (0.5 * dt).max(floor);
             }
             // Redo the step from the divergence-free velocities.
             self.fluid.velocity.clone_from(&self.retry_velocity);

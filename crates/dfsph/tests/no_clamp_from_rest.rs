@@ -41,11 +41,11 @@ fn case() -> impl Strategy<Value = Case> {
         (-5.0..5.0f64, -5.0..5.0f64), // tank origin
         prop::collection::vec(block, 1..4),
         any::<bool>(),
-        prop_oneof![Just(-9.0f64), -1.0..3.0f64], // log10 |g| (-9: no gravity)
-        -0.8..0.8f64,                             // direction of g, radians from straight down
+        prop_oneof![1 => Just(-9.0f64), 5 => -1.0..3.0f64], // log10 |g| (-9: none)
+        -0.8..0.8f64, // direction of g, radians from straight down
         0.05..1.0f64,
         -5.0..0.0f64, // log10 max Δt: 10 µs to 1 s
-        prop_oneof![1.0e-6..1.0f64, 1.001..3.0f64],
+        prop_oneof![3 => 1.0e-6..1.0f64, 1 => 1.001..3.0f64],
     )
         .prop_map(
             |(r, tank, origin, blocks, hexagonal, g, angle, cfl, max_dt, min_share)| Case {
@@ -112,7 +112,7 @@ fn scene(c: &Case) -> Scene {
 
 proptest! {
     #![proptest_config(ProptestConfig {
-        cases: 48,
+        cases: 64,
         failure_persistence: None,
         ..ProptestConfig::default()
     })]
@@ -149,6 +149,36 @@ proptest! {
                 }
             }
         }
+    }
+}
+
+/// A case the property test found: a hexagonal block dropped under 297 m/s² with a 1 s cap and
+/// `time_step.min` at a third of the first step's bound. At its impact on the floor the
+/// displacement bound had taken Δt below the minimum, where no step was redone any more, and
+/// a pressure kick carried a particle through the floor at step 11.
+#[test]
+fn a_block_dropped_under_strong_gravity_does_not_leak() {
+    let c = Case {
+        radius: 0.002162893529139179,
+        tank: (26, 18),
+        origin: (0.0, 0.0),
+        blocks: vec![(
+            0.04103441129868105,
+            0.9056246720141858,
+            0.11029453344559137,
+            0.8777881657141746,
+        )],
+        hexagonal: true,
+        gravity: (297.3290664872463, -0.21514230119953878),
+        cfl: 0.4658526864819929,
+        max_dt: 1.0,
+        min_share: 0.31468871726045605,
+    };
+    let s = scene(&c);
+    let mut sim = Simulation::new(&s).unwrap();
+    for _ in 0..3 * STEPS {
+        let st = *sim.step();
+        assert_eq!(st.clamped + st.non_finite, 0, "{st:?}");
     }
 }
 
