@@ -93,6 +93,12 @@ pub struct ViewArgs {
     /// docs/recording.md), for `dfsph2d run SCENE --replay FILE`.
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
+
+    /// Refuse a scene whose estimated memory is above BYTES (suffixes K, M, G, T are powers
+    /// of 1024: 512M, 2G). The memory available, a cgroup's limit and the address-space limit
+    /// (ulimit -v) are checked in any case.
+    #[arg(long, value_name = "BYTES", value_parser = dfsph::memory::parse_bytes)]
+    pub max_memory: Option<u64>,
 }
 
 #[derive(Debug, Args)]
@@ -121,6 +127,12 @@ pub struct StressArgs {
     /// Worker threads (default: one per core).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub threads: Option<u32>,
+
+    /// Refuse a scene whose estimated memory is above BYTES (suffixes K, M, G, T are powers
+    /// of 1024: 512M, 2G). The memory available, a cgroup's limit and the address-space limit
+    /// (ulimit -v) are checked in any case.
+    #[arg(long, value_name = "BYTES", value_parser = dfsph::memory::parse_bytes)]
+    pub max_memory: Option<u64>,
 }
 
 #[derive(Debug, Args)]
@@ -165,6 +177,12 @@ pub struct RunArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub threads: Option<u32>,
 
+    /// Refuse a scene whose estimated memory is above BYTES (suffixes K, M, G, T are powers
+    /// of 1024: 512M, 2G). The memory available, a cgroup's limit and the address-space limit
+    /// (ulimit -v) are checked in any case.
+    #[arg(long, value_name = "BYTES", value_parser = dfsph::memory::parse_bytes)]
+    pub max_memory: Option<u64>,
+
     /// Width of PNG frames in pixels.
     #[arg(long, value_name = "PIXELS", default_value_t = 800,
           value_parser = clap::value_parser!(u32).range(64..=16384))]
@@ -185,6 +203,12 @@ pub struct ValidateArgs {
     /// Worker threads (default: one per core).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub threads: Option<u32>,
+
+    /// Refuse a scene whose estimated memory is above BYTES (suffixes K, M, G, T are powers
+    /// of 1024: 512M, 2G). The memory available, a cgroup's limit and the address-space limit
+    /// (ulimit -v) are checked in any case.
+    #[arg(long, value_name = "BYTES", value_parser = dfsph::memory::parse_bytes)]
+    pub max_memory: Option<u64>,
 }
 
 /// A snapshot file format.

@@ -40,6 +40,26 @@ pub const MANIFEST: &str = ".dfsph2d-manifest";
 const MANIFEST_HEADER: &str =
     "# dfsph2d run: files written by this run, removed by the next run in this directory";
 
+/// Memory the frame writers take besides the simulation's snapshot, bytes, for the memory
+/// check (`dfsph::memory`): a PNG frame is a pixmap of `png_width` × its height in RGBA
+/// and its encoded copy (at most as large); a VTK frame builds its arrays (53 bytes per
+/// particle) and the base64 text of the largest (16 bytes per particle).
+pub fn buffer_bytes(formats: &[Format], png_width: u32, scene: &Scene, fluid: u64) -> u64 {
+    let mut bytes = 0u64;
+    if formats.contains(&Format::Png) {
+        let width = png_width.clamp(dfsph_io::render::MIN_WIDTH, dfsph_io::render::MAX_SIDE) as f64;
+        let margin = 4.0 * scene.spacing();
+        let aspect = (scene.tank.max[1] - scene.tank.min[1] + margin)
+            / (scene.tank.max[0] - scene.tank.min[0] + margin);
+        let height = (width * aspect + 64.0).min(dfsph_io::render::MAX_SIDE as f64);
+        bytes += (2.0 * 4.0 * width * height) as u64;
+    }
+    if formats.contains(&Format::Vtk) {
+        bytes = bytes.saturating_add(fluid.saturating_mul(53 + 16));
+    }
+    bytes
+}
+
 /// Check, without creating anything, that `dir` can be used as the output directory: it
 /// may exist (its files of the names we write are then overwritten) but must not be a file,
 /// and `dir/particles`, if it exists, must be a directory and not a symbolic link (which

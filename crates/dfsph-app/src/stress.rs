@@ -33,6 +33,11 @@ pub fn command(args: StressArgs) -> Result<(), Failure> {
     }
     let scene = load_scene(&args.scene).map_err(Failure::input)?;
     let scene = budgeted(scene);
+    crate::check_memory(
+        &format!("scene `{}`", args.scene),
+        &scene.memory_estimate_for(scene.max_particles as u64),
+        args.max_memory,
+    )?;
     let sim = Simulation::new(&scene)
         .map_err(|e| Failure::input(format!("scene `{}`: {e}", args.scene)))?;
     let recorder = match &args.record {

@@ -31,6 +31,7 @@ pub mod density_cg;
 pub mod forces;
 pub mod kernel;
 pub mod lockstep;
+pub mod memory;
 pub mod neighbors;
 pub mod packing;
 pub mod parallel;

@@ -42,6 +42,19 @@ impl FluidParticles {
         self.position.is_empty()
     }
 
+    /// Make room for `additional` more particles in every array, exactly: built by pushes
+    /// alone the arrays could hold twice the capacity they use.
+    pub fn reserve(&mut self, additional: usize) {
+        self.position.reserve_exact(additional);
+        self.velocity.reserve_exact(additional);
+        self.id.reserve_exact(additional);
+        self.density_ratio.reserve_exact(additional);
+        self.factor.reserve_exact(additional);
+        self.pressure_over_rho0.reserve_exact(additional);
+        self.divergence_stiffness.reserve_exact(additional);
+        self.acceleration.reserve_exact(additional);
+    }
+
     /// Append one particle at rest density.
     pub fn push(&mut self, position: Vec2, velocity: Vec2, id: u32) {
         self.position.push(position);

@@ -696,6 +696,29 @@ impl Scene {
                 format!("{} is greater than time_step.max ({})", t.min, t.max),
             ));
         }
+        // The first step starts from the blocks' own velocities under gravity alone; a
+        // minimum above the displacement bound there could not be honoured even once (the
+        // bound wins at run time, see `simulation::step_displacement_bound`).
+        let initial_speed = self
+            .fluid
+            .iter()
+            .map(|b| b.velocity[0].hypot(b.velocity[1]))
+            .fold(0.0, f64::max);
+        let g = self.gravity[0].hypot(self.gravity[1]);
+        let first_step = crate::simulation::step_displacement_bound(initial_speed, g, d);
+        if t.min > first_step {
+            return Err(invalid(
+                "time_step.min",
+                format!(
+                    "must be at most {first_step:.3e} s, got {} s: in a longer first step water \
+                     starting at {initial_speed} m/s under gravity {g} m/s² moves more than \
+                     {}·d = {} m and can pass through a wall",
+                    t.min,
+                    crate::simulation::MAX_STEP_DISPLACEMENT,
+                    d * f64::from(crate::simulation::MAX_STEP_DISPLACEMENT)
+                ),
+            ));
+        }
 
         let v = &self.viscosity;
         for (key, val) in [
@@ -1005,6 +1028,7 @@ mod tests {
                 "{\"time_step\": {\"min\": 0.1, \"max\": 0.01}}",
                 "time_step.min",
             ),
+            ("{\"time_step\": {\"min\": 1, \"max\": 1}}", "time_step.min"),
             (
                 "{\"tank\": {\"min\": [0, 0], \"max\": [0, 1]}}",
                 "tank.max[0]",

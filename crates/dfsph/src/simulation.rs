@@ -226,6 +226,7 @@ impl Simulation {
             });
             inside_box || obstacle_grid.any_near(p)
         };
+        sim.fluid.reserve(scene.fluid_particle_count());
         for block in scene.fluid.iter().filter(|_| hexagonal) {
             let v = to_vec2(block.velocity);
             let tolerance = scene.tank.edge_tolerance();
@@ -275,6 +276,11 @@ impl Simulation {
 
     pub(crate) fn add_boundary_samples(&mut self, samples: BoundarySamples) {
         let cell = self.spacing * self.spacing;
+        let n = samples.positions.len();
+        self.boundary.position.reserve_exact(n);
+        self.boundary.velocity.reserve_exact(n);
+        self.boundary.volume.reserve_exact(n);
+        self.boundary.body.reserve_exact(n);
         for ((p, b), area) in samples
             .positions
             .into_iter()
@@ -543,7 +549,15 @@ impl Simulation {
             if displacement < best.0 {
                 best = (displacement, dt);
             }
-            if retries >= MAX_STEP_RETRIES || dt <= min_dt {
+            // A step that would carry a particle more than MAX_STEP_DISPLACEMENT is redone
+            // below the scene's minimum too, as the displacement bound overrides it: a leak
+            // through a wall is worse than a short step.
+            let floor = if displacement > MAX_STEP_DISPLACEMENT {
+                0.0
+            } else {
+                min_dt
+            };
+            if retries >= MAX_STEP_RETRIES || dt <= floor {
                 if best.1 == dt {
                     break report;
                 }
@@ -554,7 +568,7 @@ impl Simulation {
                 settle = true;
             } else {
                 retries += 1;
-                dt = (0.5 * dt).max(min_dt);
+                dt = (0.5 * dt).max(floor);
             }
             // Redo the step from the divergence-free velocities.
             self.fluid.velocity.clone_from(&self.retry_velocity);
@@ -634,7 +648,8 @@ impl Simulation {
     }
 
     /// CFL condition `Δt = λ·d / v_max` (v_max includes moving walls; WCSPH adds the speed of
-    /// sound), at most `√(λ·d/|g|)`, clamped to the scene's bounds.
+    /// sound), at most `√(λ·d/|g|)`, clamped to the scene's bounds; then at most the viscous
+    /// stability bound and [`step_displacement_bound`], which both beat `time_step.min`.
     fn cfl_time_step(&self) -> f32 {
         let ts = &self.scene.time_step;
         let fluid_max = self
@@ -678,7 +693,31 @@ impl Simulation {
         } else {
             ts.max as f32
         };
-        dt.clamp((ts.min as f32).min(upper), upper)
+        // No step may carry water through a wall: the distance a particle travels in it under
+        // the step's accelerations, |v|·Δt + ½|a|·Δt², stays within MAX_STEP_DISPLACEMENT·d
+        // ([`step_displacement_bound`]). Like the viscous bound it beats the scene's minimum
+        // (the validator refuses a `time_step.min` above it from rest; later, a fast flow can
+        // bring it lower). The speed is the fastest particle's plus the fastest wall's (they
+        // may close on each other); the acceleration is gravity's, the pointer's, and the
+        // shaken tank's.
+        let mut acceleration = g;
+        if let Some(p) = self.pointer.filter(|p| p.radius > 0.0) {
+            let strength = p.strength.abs().min(forces::MAX_POINTER_ACCELERATION);
+            acceleration += strength;
+            if p.strength < 0.0 {
+                // A pull also damps the velocity relative to the pointer (4·|v| at most).
+                acceleration += 4.0 * fluid_max;
+            }
+        }
+        if self.shake_drive != 0.0 || wall_max > 0.0 {
+            acceleration += MAX_SHAKE_ACCELERATION;
+        }
+        let bound = step_displacement_bound(
+            (fluid_max + wall_max) as f64,
+            acceleration as f64,
+            self.spacing as f64,
+        ) as f32;
+        dt.clamp((ts.min as f32).min(upper), upper).min(bound)
     }
 
     /// Tank motion from the shake drive: a critically damped spring pulls the tank towards
@@ -984,6 +1023,24 @@ pub const RETRY_DENSITY_ERROR_PCT: f64 = 5.0;
 /// last step); at d/2 it passes 20,000 steps. Normal flows rarely come near it (one retry in
 /// 1.5 s of the default dam break, none in the 5k benchmark).
 pub const MAX_STEP_DISPLACEMENT: f32 = 0.5;
+
+/// The longest Δt in which a particle moving at `speed` (m/s) under an `acceleration` (m/s²)
+/// travels at most [`MAX_STEP_DISPLACEMENT`] particle spacings (`spacing` = d, m):
+/// `speed·Δt + ½·acceleration·Δt² ≤ MAX_STEP_DISPLACEMENT·d`, the positive root
+/// `Δt = 2R / (v + √(v² + 2aR))` with `R = MAX_STEP_DISPLACEMENT·d`. Infinite when nothing
+/// moves or accelerates. Every step is at most this (see `Simulation::step`), so no step
+/// carries water from beside a wall through it; the scene validator refuses a
+/// `time_step.min` above it at the start (the blocks' initial speeds under gravity).
+pub fn step_displacement_bound(speed: f64, acceleration: f64, spacing: f64) -> f64 {
+    let reach = f64::from(MAX_STEP_DISPLACEMENT) * spacing;
+    let speed = speed.max(0.0);
+    let denominator = speed + (speed * speed + 2.0 * acceleration.max(0.0) * reach).sqrt();
+    if denominator > 0.0 {
+        2.0 * reach / denominator
+    } else {
+        f64::INFINITY
+    }
+}
 
 /// How far the tank slides when shaken, m.
 pub const MAX_SHAKE_OFFSET: f32 = 0.4;

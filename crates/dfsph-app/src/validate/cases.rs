@@ -75,17 +75,23 @@ fn rms(values: impl Iterator<Item = f64>) -> f64 {
 // Hydrostatic tank
 // ---------------------------------------------------------------------------------------
 
-pub fn hydrostatic(s: Settings) -> Result<Vec<CaseReport>> {
-    const CASE: &str = "Hydrostatic";
-    // The built-in tank starts on the hexagonal packing with a hydrostatic pressure and the
-    // conjugate-gradient solve, and is at rest from the first step. (On the square lattice
-    // with the Jacobi solve it rearranged in bursts for 3–9.5 s.) 15 s at r = 1 cm checks that
-    // it stays at rest.
-    let (r, until) = if s.quick { (0.025, 2.0) } else { (0.01, 15.0) };
-    let depth = 1.0;
+/// The hydrostatic case's radius and duration, s.
+fn hydrostatic_run(s: Settings) -> (f64, f64) {
+    if s.quick {
+        (0.025, 2.0)
+    } else {
+        (0.01, 15.0)
+    }
+}
+
+/// Heights of the hydrostatic tank's interior pressure probes, m.
+const HYDROSTATIC_HEIGHTS: [f64; 5] = [0.05, 0.25, 0.5, 0.75, 0.9];
+
+/// The built-in hydrostatic tank at radius `r` with the case's probes.
+fn hydrostatic_scene(r: f64) -> Scene {
     let mut scene = scene::builtin("hydrostatic").expect("built-in");
     scene.particle_radius = r;
-    let heights = [0.05, 0.25, 0.5, 0.75, 0.9];
+    let heights = HYDROSTATIC_HEIGHTS;
     let mut probes: Vec<Probe> = heights
         .iter()
         .map(|&y| Probe::Pressure {
@@ -105,7 +111,32 @@ pub fn hydrostatic(s: Settings) -> Result<Vec<CaseReport>> {
         name: "level_x1".into(),
         x: 1.0,
     });
-    scene.probes = probes.clone();
+    scene.probes = probes;
+    scene
+}
+
+/// Every scene `validate` runs with these settings, to check their memory before any runs
+/// (`dfsph2d validate --max-memory`).
+pub fn scenes(s: Settings) -> Vec<Scene> {
+    let mut all = vec![hydrostatic_scene(hydrostatic_run(s).0)];
+    for r in dam_radii(s) {
+        all.push(dam_scene(r, Method::Dfsph));
+    }
+    all.push(dam_scene(dam_radii(s)[1], Method::Wcsph));
+    all.push(lobovsky_scene(lobovsky_run(s).0));
+    all
+}
+
+pub fn hydrostatic(s: Settings) -> Result<Vec<CaseReport>> {
+    const CASE: &str = "Hydrostatic";
+    // The built-in tank starts on the hexagonal packing with a hydrostatic pressure and the
+    // conjugate-gradient solve, and is at rest from the first step. (On the square lattice
+    // with the Jacobi solve it rearranged in bursts for 3–9.5 s.) 15 s at r = 1 cm checks that
+    // it stays at rest.
+    let (r, until) = hydrostatic_run(s);
+    let depth = 1.0;
+    let scene = hydrostatic_scene(r);
+    let probes = scene.probes.clone();
     let (trace, sim) = simulate("hydrostatic", &scene, until)?;
     let completed = completion_check(CASE, &trace, until);
 
@@ -311,6 +342,15 @@ const A: f64 = 1.0;
 /// Tank length in units of a: the front reaches Z ≈ 16 by the end of the long run.
 const TANK_LENGTH: f64 = 18.0;
 
+/// The dam-break case's radii: coarse, main, fine.
+fn dam_radii(s: Settings) -> [f64; 3] {
+    if s.quick {
+        [0.035, 0.025, 0.0175]
+    } else {
+        [0.02, 0.01, 0.005]
+    }
+}
+
 fn dam_scene(r: f64, method: Method) -> Scene {
     let mut s = Scene {
         name: "validation-dam-break".into(),
@@ -353,11 +393,7 @@ fn front_tz(tr: &Trace) -> (Vec<f64>, Vec<f64>) {
 
 pub fn dam_break(s: Settings) -> Result<Vec<CaseReport>> {
     const CASE: &str = "Dam break";
-    let radii: [f64; 3] = if s.quick {
-        [0.035, 0.025, 0.0175]
-    } else {
-        [0.02, 0.01, 0.005]
-    };
+    let radii = dam_radii(s);
     let r = radii[1];
     let k_front = (2.0 * G / A).sqrt();
     let k_height = (G / A).sqrt();
@@ -842,9 +878,17 @@ fn impulse(t: &[f64], p: &[f64], from: f64, len: f64) -> f64 {
     sum
 }
 
-pub fn lobovsky(s: Settings) -> Result<Vec<CaseReport>> {
-    let (r, t_end) = if s.quick { (0.005, 7.3) } else { (0.002, 11.2) };
-    let k = (G / LH).sqrt();
+/// The Lobovsky case's radius and duration (in units of √(H/g)).
+fn lobovsky_run(s: Settings) -> (f64, f64) {
+    if s.quick {
+        (0.005, 7.3)
+    } else {
+        (0.002, 11.2)
+    }
+}
+
+/// Lobovsky et al.'s tank at radius `r` with the case's gauges and sensors.
+fn lobovsky_scene(r: f64) -> Scene {
     let mut probes: Vec<Probe> = GAUGES
         .iter()
         .map(|&(name, x, _, _)| Probe::WaterLevel {
@@ -856,7 +900,7 @@ pub fn lobovsky(s: Settings) -> Result<Vec<CaseReport>> {
         name: name.into(),
         at: [1.61, y],
     }));
-    let scene = Scene {
+    Scene {
         name: "lobovsky-2014-h300".into(),
         description: "Lobovsky et al. 2014 dam break, H = 300 mm".into(),
         particle_radius: r,
@@ -871,7 +915,13 @@ pub fn lobovsky(s: Settings) -> Result<Vec<CaseReport>> {
         }],
         probes,
         ..Scene::default()
-    };
+    }
+}
+
+pub fn lobovsky(s: Settings) -> Result<Vec<CaseReport>> {
+    let (r, t_end) = lobovsky_run(s);
+    let k = (G / LH).sqrt();
+    let scene = lobovsky_scene(r);
     let (tr, _) = simulate(&format!("Lobovsky r = {r}"), &scene, t_end / k)?;
     let ts: Vec<f64> = tr.t.iter().map(|t| t * k).collect();
     let t_sim_end = *ts.last().unwrap_or(&0.0);

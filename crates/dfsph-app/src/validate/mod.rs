@@ -20,6 +20,7 @@ use std::time::Instant;
 use anyhow::Result;
 use dfsph::{probes, Scene, Simulation, StepStats};
 
+pub use cases::scenes;
 pub use report::write_report;
 
 /// One comparison with a stated tolerance.
