@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 
 mod common;
 
-use common::{coarse_scene, dfsph2d, text, BIN};
+use common::{all_files, coarse_scene, dfsph2d, text, BIN};
 
 /// Start `dfsph2d args` with its output piped.
 fn spawn(args: &[&str]) -> Child {
@@ -125,17 +125,6 @@ fn dfsph_io_header() -> &'static str {
     "step,time,dt,n_fluid,density_iterations,divergence_iterations,avg_density_error_pct,\
      max_density_error_pct,max_speed,kinetic_energy,divergence_error_pct,clamped,non_finite,\
      avg_neighbors,n_boundary,retries"
-}
-
-fn all_files(dir: &Path, out: &mut Vec<String>) {
-    for e in std::fs::read_dir(dir).unwrap() {
-        let e = e.unwrap();
-        if e.file_type().unwrap().is_dir() {
-            all_files(&e.path(), out);
-        } else {
-            out.push(e.path().to_string_lossy().into_owned());
-        }
-    }
 }
 
 /// A long run writing csv and vtk frames every 2 ms of simulated time.

@@ -4,23 +4,13 @@
 
 #![cfg(unix)]
 
-use std::path::Path;
 use std::process::{Command, Stdio};
 use std::thread::sleep;
 use std::time::{Duration, Instant};
 
-const BIN: &str = env!("CARGO_BIN_EXE_dfsph2d");
+mod common;
 
-fn all_files(dir: &Path, out: &mut Vec<String>) {
-    for e in std::fs::read_dir(dir).unwrap() {
-        let e = e.unwrap();
-        if e.file_type().unwrap().is_dir() {
-            all_files(&e.path(), out);
-        } else {
-            out.push(e.path().to_string_lossy().into_owned());
-        }
-    }
-}
+use common::{all_files, BIN};
 
 #[test]
 fn ctrl_c_leaves_only_complete_files() {

@@ -62,3 +62,15 @@ pub fn csv_rows(path: &Path) -> Vec<Vec<String>> {
         .map(|l| l.split(',').map(str::to_string).collect())
         .collect()
 }
+
+/// Every file below `dir`, recursively, as paths.
+pub fn all_files(dir: &Path, out: &mut Vec<String>) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_dir() {
+            all_files(&e.path(), out);
+        } else {
+            out.push(e.path().to_string_lossy().into_owned());
+        }
+    }
+}
