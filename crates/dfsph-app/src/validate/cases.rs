@@ -303,7 +303,7 @@ pub fn hydrostatic(s: Settings) -> Result<Vec<CaseReport>> {
          the solve's stiffness field is that much steeper than the pressure it exerts \
          (`dfsph::packing::gradient_consistency`). The mechanical pressure does not respond \
          to the patterns (`dfsph::probes`). Both are compared with the nominal depth; the \
-         hexagonal rows fill the 1 m block to the gauge's level, about 2 % lower.\n"
+         hexagonal rows fill the block to the gauge's level above, not exactly to it.\n"
     );
     text.push_str(&rows);
     let _ = writeln!(
