@@ -204,6 +204,9 @@ fn run(args: RunArgs) -> Result<(), Failure> {
             terminal_safe(&one_line(&warning))
         );
     }
+    if let Some(note) = long_run_note(&sim, args.until) {
+        let _ = writeln!(std::io::stderr(), "{note}");
+    }
     output::create_output_dir(&args.out).map_err(Failure::input)?;
     interrupt::install();
 
@@ -310,6 +313,23 @@ const SIMULATION_FAILED: u8 = 2;
 /// finding the next snapshot time counts through the ones a step jumps over, so an `--every`
 /// of 1e-300 s hung before step 1; a million frames is more than any run can usefully write.
 const MAX_SNAPSHOTS: f64 = 1_000_000.0;
+
+/// A run of at least this many steps is announced before it starts.
+const LONG_RUN_STEPS: f64 = 1.0e6;
+
+/// A `note:` line when a run to `until` would take at least [`LONG_RUN_STEPS`] steps at the
+/// first step's Δt (a legal but very viscous or finely resolved scene): the user learns up
+/// front why it is slow, and that Ctrl-C stops it with its output complete.
+fn long_run_note(sim: &Simulation, until: Option<f64>) -> Option<String> {
+    let dt = sim.next_time_step() as f64;
+    let steps = (until? - sim.time()) / dt;
+    (dt > 0.0 && steps >= LONG_RUN_STEPS).then(|| {
+        format!(
+            "note: this run will take at least {steps:.2e} steps (Δt ≤ {dt:.2e} s from the \
+             scene's time step and stability bounds); Ctrl-C stops it with its output complete"
+        )
+    })
+}
 
 /// Refuse an `--every` that would give more than [`MAX_SNAPSHOTS`] snapshots over `--until`,
 /// or, for a replay without `--until`, over the longest the recording can last (its steps at

@@ -365,3 +365,73 @@ fn a_replay_stops_on_ctrl_c_in_a_long_run_of_actions() {
         "no step taken"
     );
 }
+
+#[test]
+fn a_run_of_a_million_steps_says_so_up_front_and_stops_on_ctrl_c() {
+    // A legal but very viscous scene: ν = 1 m²/s at d = 1 cm limits Δt to about 1e-5 s, so
+    // 20 s take more than a million steps.
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = common::write_scene(
+        tmp.path(),
+        "honey.json",
+        br#"{"particle_radius": 0.005, "tank": {"min": [0, 0], "max": [0.2, 0.2]},
+             "fluid": [{"min": [0, 0], "max": [0.05, 0.05]}],
+             "viscosity": {"kinematic": 1}}"#,
+    );
+    let out = tmp.path().join("out");
+    let mut child = Command::new(BIN)
+        .args(["run", scene.to_str().unwrap(), "--until", "20", "--out"])
+        .arg(&out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The note comes before the first step; stop the run once a step is on disk.
+    let stderr = child.stderr.take().unwrap();
+    let first = std::io::BufRead::lines(std::io::BufReader::new(stderr))
+        .next()
+        .unwrap()
+        .unwrap();
+    assert!(
+        first.starts_with("note: this run will take at least ")
+            && first.contains(" steps (Δt ≤ ")
+            && first.contains("Ctrl-C stops it"),
+        "{first}"
+    );
+    let steps: f64 = first
+        .trim_start_matches("note: this run will take at least ")
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(steps >= 1.0e6, "{first}");
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while std::fs::read_to_string(out.join("stats.csv"))
+        .map(|t| t.lines().count() < 3)
+        .unwrap_or(true)
+    {
+        assert!(Instant::now() < deadline, "no step written within 60 s");
+        sleep(Duration::from_millis(20));
+    }
+    signal(&child, "INT");
+    let output = finish(child);
+    assert_eq!(output.status.code(), Some(130));
+}
+
+#[test]
+fn a_short_run_gets_no_note() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = coarse_scene(tmp.path());
+    let out = tmp.path().join("out");
+    let o = dfsph2d(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--until",
+        "0.01",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    assert!(!text(&o.stderr).contains("note:"), "{}", text(&o.stderr));
+}

@@ -650,6 +650,12 @@ impl Simulation {
     /// CFL condition `Δt = λ·d / v_max` (v_max includes moving walls; WCSPH adds the speed of
     /// sound), at most `√(λ·d/|g|)`, clamped to the scene's bounds; then at most the viscous
     /// stability bound and [`step_displacement_bound`], which both beat `time_step.min`.
+    /// The Δt the next step starts from: the CFL step and its bounds (gravity, the
+    /// viscosity's stability limit, `time_step`), before any retry shortens it.
+    pub fn next_time_step(&self) -> f32 {
+        self.cfl_time_step()
+    }
+
     fn cfl_time_step(&self) -> f32 {
         let ts = &self.scene.time_step;
         let fluid_max = self
