@@ -76,16 +76,7 @@ fn main() {
     }
     let snap = sim.snapshot();
     let heff = snap.position.len() as f64 * d * d / w;
-    let (mut sum, mut mx, mut cnt) = (0.0f64, 0.0f64, 0);
-    for (p, pr) in snap.position.iter().zip(&snap.pressure) {
-        let (x, y) = (p.x as f64, p.y as f64);
-        if x > 3.0 * d && x < w - 3.0 * d && y > 3.0 * d && y < heff - 3.0 * d {
-            let e = (*pr as f64 - 1000.0 * 9.81 * (heff - y)) / (1000.0 * 9.81 * heff);
-            sum += e;
-            mx = mx.max(e.abs());
-            cnt += 1;
-        }
-    }
+    let (mean, mx, cnt) = pressure_error(&snap, w, heff, d, heff);
     let mut bands = std::collections::BTreeMap::<i64, (f64, f64, usize)>::new();
     for (p, pr) in snap.position.iter().zip(&snap.pressure) {
         let (x, y) = (p.x as f64, p.y as f64);
@@ -125,11 +116,7 @@ fn main() {
         "  mean |rho/rho0 - 1| more than h below the surface: {:.3} %",
         interior.iter().sum::<f64>() / interior.len().max(1) as f64
     );
-    println!(
-        "end: H_eff={heff:.4} p_err vs H_eff: mean={:.4} max={:.4} n={cnt}",
-        sum / cnt.max(1) as f64,
-        mx
-    );
+    println!("end: H_eff={heff:.4} p_err vs H_eff: mean={mean:.4} max={mx:.4} n={cnt}");
     let mut idx: Vec<usize> = (0..snap.position.len()).collect();
     idx.sort_by(|&a, &b| {
         snap.velocity[b]
