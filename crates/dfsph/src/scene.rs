@@ -161,8 +161,8 @@ pub struct TimeStepParams {
     pub cfl: f64,
     /// Smallest time step, seconds.
     pub min: f64,
-    /// Largest time step, seconds. The default 1 ms is a stability cap: at 5 ms the hydrostatic
-    /// tank at r = 1 cm goes unstable.
+    /// Largest time step, seconds. The default 1 ms is an accuracy cap: above it the resting
+    /// hydrostatic tank at r = 1 cm moves faster than 1 % of sqrt(gH) (docs/scenes.md).
     pub max: f64,
 }
 
