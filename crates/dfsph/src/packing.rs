@@ -112,6 +112,18 @@ pub fn hexagonal_gradient_consistency(
     gradient_consistency(kernel, volume, lattice_offsets(d, reach))
 }
 
+/// [`gradient_consistency`] of the square lattice of spacing `d`.
+pub fn square_gradient_consistency(
+    kernel: &crate::kernel::CubicSpline,
+    d: f32,
+    volume: f32,
+) -> f32 {
+    let reach = (kernel.support() / d).ceil() as i32 + 1;
+    let offsets = (-reach..=reach)
+        .flat_map(|j| (-reach..=reach).map(move |i| Vec2::new(i as f32 * d, j as f32 * d)));
+    gradient_consistency(kernel, volume, offsets)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

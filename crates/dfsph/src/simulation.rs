@@ -146,14 +146,7 @@ impl Simulation {
         let gradient_consistency = if hexagonal {
             packing::hexagonal_gradient_consistency(&kernel, d, volume)
         } else {
-            let reach = (kernel.support() / d).ceil() as i32 + 1;
-            packing::gradient_consistency(
-                &kernel,
-                volume,
-                (-reach..=reach).flat_map(|j| {
-                    (-reach..=reach).map(move |i| Vec2::new(i as f32 * d, j as f32 * d))
-                }),
-            )
+            packing::square_gradient_consistency(&kernel, d, volume)
         };
         let mut sim = Simulation {
             scene: scene.clone(),
@@ -647,11 +640,8 @@ impl Simulation {
         max2.sqrt() * dt / self.spacing
     }
 
-    /// CFL condition `Δt = λ·d / v_max` (v_max includes moving walls; WCSPH adds the speed of
-    /// sound), at most `√(λ·d/|g|)`, clamped to the scene's bounds; then at most the viscous
-    /// stability bound and [`step_displacement_bound`], which both beat `time_step.min`.
     /// The Δt the next step starts from: the CFL step and its bounds (gravity, the
-    /// viscosity's stability limit, `time_step`), before any retry shortens it.
+    /// viscosity's stability limit, deep water, `time_step`), before any retry shortens it.
     pub fn next_time_step(&self) -> f32 {
         self.cfl_time_step()
     }
@@ -686,6 +676,10 @@ impl Simulation {
         PRESSURE_WAVE_STABILITY * self.spacing / (g * extent).sqrt()
     }
 
+    /// CFL condition `Δt = λ·d / v_max` (v_max includes moving walls; WCSPH adds the speed of
+    /// sound), at most `√(λ·d/|g|)`, clamped to the scene's bounds; then at most the viscous
+    /// stability bound, [`Self::pressure_wave_time_step`] and [`step_displacement_bound`],
+    /// which all beat `time_step.min`.
     fn cfl_time_step(&self) -> f32 {
         let ts = &self.scene.time_step;
         let fluid_max = self
@@ -1035,9 +1029,9 @@ pub const MAX_DENSITY_ERROR_PCT: f64 = 1.0;
 /// reached 16 m/s within 50 steps.
 pub const VISCOUS_STABILITY: f32 = 0.125;
 
-/// Largest Δt·√(p/ρ0)/d, p the hydrostatic pressure at the bottom of the water. Against the pressure of a deep
-/// column the symmetric pressure force is a stiff spring on each particle's place in the
-/// lattice (its pull grows with p, not with the pressure's gradient), integrated explicitly
+/// Largest Δt·√(p/ρ0)/d, p the hydrostatic pressure at the bottom of the water. Against the
+/// pressure of a deep column the symmetric pressure force is a stiff spring on each particle's
+/// place in the lattice (its pull grows with p, not with the pressure's gradient), integrated explicitly
 /// like any spring: the 400-layer column of `a_deep_narrow_column_stays_at_rest` burst at
 /// Δt·√(gH)/d = 0.89 and held still at 0.66, at d = 5 mm and at d = 1 cm alike
 /// (docs/deep-columns.md). 0.6 leaves a margin of 1.5; flows rarely meet it, as their CFL

@@ -72,6 +72,19 @@ fn block(min: [f64; 2], max: [f64; 2]) -> FluidBlock {
     }
 }
 
+/// A tank [0, tank] with one block of fluid [0, fluid] in its corner.
+fn tank_with_block(name: &str, tank: [f64; 2], fluid: [f64; 2]) -> Scene {
+    Scene {
+        name: name.into(),
+        tank: Tank {
+            min: [0.0, 0.0],
+            max: tank,
+        },
+        fluid: vec![block([0.0, 0.0], fluid)],
+        ..Scene::default()
+    }
+}
+
 /// One test, so no other test's allocations run beside the measurements.
 #[test]
 fn the_estimate_is_an_upper_bound_within_twice_the_peak() {
@@ -91,28 +104,9 @@ fn the_estimate_is_an_upper_bound_within_twice_the_peak() {
     s.particle_radius = 0.0075;
     scenes.push((s, 20));
     scenes.push((dfsph::scene::builtin("obstacle").unwrap(), 40));
+    scenes.push((tank_with_block("flat", [60.0, 0.5], [60.0, 0.06]), 20));
     scenes.push((
-        Scene {
-            name: "flat".into(),
-            tank: Tank {
-                min: [0.0, 0.0],
-                max: [60.0, 0.5],
-            },
-            fluid: vec![block([0.0, 0.0], [60.0, 0.06])],
-            ..Scene::default()
-        },
-        20,
-    ));
-    scenes.push((
-        Scene {
-            name: "small block in a large tank".into(),
-            tank: Tank {
-                min: [0.0, 0.0],
-                max: [40.0, 30.0],
-            },
-            fluid: vec![block([0.0, 0.0], [0.5, 0.5])],
-            ..Scene::default()
-        },
+        tank_with_block("small block in a large tank", [40.0, 30.0], [0.5, 0.5]),
         20,
     ));
     scenes.push((
