@@ -158,7 +158,11 @@ impl Coloring {
             }
             Coloring::Pressure => {
                 let rho0 = sim.rest_density();
-                out.extend(sim.pressures_over_rho0().iter().map(|p| map(p * rho0)))
+                out.extend(
+                    sim.interpolated_pressures_over_rho0()
+                        .iter()
+                        .map(|p| map(p * rho0)),
+                )
             }
         }
         // Before the first step the per-particle fields may still be empty.

@@ -105,6 +105,20 @@ fn main() {
         })
         .fold(0.0f64, f64::max);
     println!("  near side walls: max err {near_wall:.4}");
+    // The interior: at least h = 2d from every wall and below the free surface.
+    let interior_err = snap
+        .position
+        .iter()
+        .zip(&snap.pressure)
+        .filter(|(p, _)| {
+            let (x, y) = (p.x as f64, p.y as f64);
+            x > 2.0 * d && x < w - 2.0 * d && y > 2.0 * d && y < heff - 2.0 * d
+        })
+        .map(|(p, pr)| {
+            ((*pr as f64 - 1000.0 * 9.81 * (heff - p.y as f64)) / (1000.0 * 9.81 * heff)).abs()
+        })
+        .fold(0.0f64, f64::max);
+    println!("  interior (h from walls and surface): max err {interior_err:.4}");
     let interior: Vec<f64> = snap
         .position
         .iter()
