@@ -293,7 +293,9 @@ fn invalid(key: impl Into<String>, message: impl Into<String>) -> SceneError {
 }
 
 impl Scene {
-    /// Parse and validate a scene from JSON text. Keys that are absent take their defaults.
+    /// Parse and validate a scene from JSON text. Keys that are absent take their defaults,
+    /// which for water at rest are the settings that hold it at rest
+    /// ([`Self::is_water_at_rest`], `apply_rest_defaults`).
     pub fn from_json(text: &str) -> Result<Self, SceneError> {
         if text.trim().is_empty() {
             return Err(SceneError::Parse(
@@ -316,7 +318,7 @@ impl Scene {
             )));
         }
         let de = &mut serde_json::Deserializer::from_str(text);
-        let scene: Scene = serde_path_to_error::deserialize(&mut *de).map_err(|e| {
+        let mut scene: Scene = serde_path_to_error::deserialize(&mut *de).map_err(|e| {
             let path = e.path().to_string();
             let inner = e.into_inner();
             if path.is_empty() || path == "." || path == "?" {
@@ -328,8 +330,64 @@ impl Scene {
         de.end().map_err(|e| {
             SceneError::Parse(format!("unexpected text after the scene object: {e}"))
         })?;
+        // The text parsed as a scene object, so it parses as a JSON value.
+        let keys: serde_json::Value = serde_json::from_str(text).unwrap_or_default();
+        scene.apply_rest_defaults(&keys);
         scene.validate()?;
         Ok(scene)
+    }
+
+    /// Whether the scene is water at rest: every fluid block spans the tank from wall to wall
+    /// and starts still, under gravity straight down the y axis. Such water has nowhere to
+    /// flow until it is disturbed (shaken, pushed, poured into), and the exact answer is that
+    /// nothing moves.
+    pub fn is_water_at_rest(&self) -> bool {
+        let tolerance = self.tank.edge_tolerance() + 0.5 * self.spacing();
+        self.gravity[0] == 0.0
+            && self.gravity[1] < 0.0
+            && self.fluid.iter().all(|b| {
+                b.velocity == [0.0, 0.0]
+                    && b.min[0] <= self.tank.min[0] + tolerance
+                    && b.max[0] >= self.tank.max[0] - tolerance
+            })
+    }
+
+    /// A scene file's defaults for water at rest ([`Self::is_water_at_rest`]), for the keys
+    /// the file leaves out (`keys` is the file's JSON): the hexagonal packing, the
+    /// conjugate-gradient pressure solve, and with it at least one iteration per layer of
+    /// water. The general defaults (the square lattice, the Jacobi solve) let a column
+    /// hundreds of layers deep fall into its bottom rows and slosh at 1–3.5 m/s; these hold it
+    /// still at any depth measured (400 layers). They are not the general defaults because a
+    /// collapsing column on the hexagonal lattice drains too slowly (docs/deep-columns.md).
+    fn apply_rest_defaults(&mut self, keys: &serde_json::Value) {
+        if !self.is_water_at_rest() || self.solver.method != Method::Dfsph {
+            return;
+        }
+        let solver = keys.get("solver");
+        let absent =
+            |v: Option<&serde_json::Value>, key: &str| v.and_then(|v| v.get(key)).is_none();
+        if keys.get("packing").is_none() {
+            self.packing = Packing::Hexagonal;
+        }
+        if absent(solver, "pressure_solve") {
+            self.solver.pressure_solve = PressureSolve::ConjugateGradient;
+        }
+        if self.solver.pressure_solve == PressureSolve::ConjugateGradient
+            && absent(solver, "max_iterations")
+        {
+            // The smoothest pressure mode of a deep column spans all its layers: 100
+            // iterations held 200 layers but not 300 (docs/deep-columns.md).
+            let depth = self
+                .fluid
+                .iter()
+                .map(|b| b.max[1] - self.tank.min[1])
+                .fold(0.0, f64::max);
+            let layers = (depth / (crate::packing::ROW_DISTANCE * self.spacing())).ceil();
+            if layers.is_finite() {
+                self.solver.max_iterations =
+                    self.solver.max_iterations.max(layers.min(10_000.0) as u32);
+            }
+        }
     }
 
     /// The resolved scene as pretty JSON: every key present, defaults filled in.
@@ -968,6 +1026,64 @@ mod tests {
             e.contains("solver.pressure_solve") && e.contains("conjugate_gradient"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn water_at_rest_gets_the_rest_defaults_for_the_keys_a_file_leaves_out() {
+        let tank = r#""tank": {"min": [0, 0], "max": [0.25, 2]}, "particle_radius": 0.0025"#;
+        let column = |extra: &str| {
+            Scene::from_json(&format!(
+                r#"{{{tank}, "fluid": [{{"min": [0, 0], "max": [0.25, 1.5]}}] {extra}}}"#
+            ))
+            .unwrap()
+        };
+        // 1.5 m at d = 5 mm: 323 hexagonal rows, an iteration each.
+        let s = column("");
+        assert!(s.is_water_at_rest());
+        assert_eq!(
+            (s.packing, s.solver.pressure_solve, s.solver.max_iterations),
+            (Packing::Hexagonal, PressureSolve::ConjugateGradient, 323)
+        );
+        // What the file says is kept.
+        let s = column(r#", "packing": "square", "solver": {"max_iterations": 50}"#);
+        assert_eq!(
+            (s.packing, s.solver.pressure_solve, s.solver.max_iterations),
+            (Packing::Square, PressureSolve::ConjugateGradient, 50)
+        );
+        let s = column(r#", "solver": {"pressure_solve": "jacobi"}"#);
+        assert_eq!(
+            (s.packing, s.solver.pressure_solve, s.solver.max_iterations),
+            (Packing::Hexagonal, PressureSolve::Jacobi, 100)
+        );
+        let s = column(r#", "solver": {"method": "wcsph"}"#);
+        assert_eq!(
+            (s.packing, s.solver.pressure_solve),
+            (Packing::Square, PressureSolve::Jacobi)
+        );
+        // A shallow layer keeps the cap of 100.
+        let s = Scene::from_json(&format!(
+            r#"{{{tank}, "fluid": [{{"min": [0, 0], "max": [0.25, 0.1]}}]}}"#
+        ))
+        .unwrap();
+        assert_eq!(s.solver.max_iterations, 100);
+        // Water that can flow keeps the general defaults: a column short of the far wall, a
+        // moving block, a block above a wall-to-wall pool, gravity along x.
+        for fluid in [
+            r#""fluid": [{"min": [0, 0], "max": [0.2, 1.5]}]"#,
+            r#""fluid": [{"min": [0, 0], "max": [0.25, 1.5], "velocity": [0, -1]}]"#,
+            r#""fluid": [{"min": [0, 0], "max": [0.25, 0.5]}, {"min": [0, 1], "max": [0.1, 1.2]}]"#,
+            r#""fluid": [{"min": [0, 0], "max": [0.25, 1.5]}], "gravity": [9.81, 0]"#,
+        ] {
+            let s = Scene::from_json(&format!("{{{tank}, {fluid}}}")).unwrap();
+            assert!(!s.is_water_at_rest(), "{fluid}");
+            assert_eq!(
+                (s.packing, s.solver.pressure_solve, s.solver.max_iterations),
+                (Packing::Square, PressureSolve::Jacobi, 100),
+                "{fluid}"
+            );
+        }
+        assert!(!Scene::default().is_water_at_rest());
+        assert!(builtin("hydrostatic").unwrap().is_water_at_rest());
     }
 
     #[test]
