@@ -185,7 +185,6 @@ fn assert_column_stays_at_rest(depth: f64, max_iterations: u32) {
         assert!(st.max_speed < limit, "{st:?}");
     }
     let error = interior_pressure_error(&sim, 0.1);
-    eprintln!("{depth} m: worst interior particle {:.2} %", 100.0 * error);
     assert!(
         error < 0.01,
         "a particle's pressure {:.2} % of rho0 g H off",
