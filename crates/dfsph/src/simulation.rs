@@ -924,10 +924,10 @@ impl Simulation {
     /// sit above and below ρ0·g·(H − y), by up to 4.5 % of ρ0·g·H in a column 300 layers deep.
     /// One interpolation keeps about a quarter of that pattern (the kernel's weight on a
     /// particle's own row against the rows beside it), two keep about 7 %; both keep a linear
-    /// field exactly inside a uniform lattice. Next to the free surface and walls, where the neighbourhood is
-    /// one-sided, the result leans towards the interior's value by a fraction of a spacing's
-    /// pressure difference. Where the pressure varies over a few spacings (an impact), the
-    /// output is that much smoother than the solve's field.
+    /// field exactly inside a uniform lattice. Next to the free surface and walls, where the
+    /// neighbourhood is one-sided, the result leans towards the interior's value by a fraction
+    /// of a spacing's pressure difference. Where the pressure varies over a few spacings (an
+    /// impact), the output is that much smoother than the solve's field.
     pub fn interpolated_pressures_over_rho0(&self) -> Vec<f32> {
         let p = &self.fluid.pressure_over_rho0;
         if p.len() != self.fluid.len() || self.fluid_lists.len() != self.fluid.len() {
@@ -1072,9 +1072,9 @@ pub const VISCOUS_STABILITY: f32 = 0.125;
 
 /// Largest Δt·√(p/ρ0)/d, p the hydrostatic pressure at the bottom of the water. Against the
 /// pressure of a deep column the symmetric pressure force is a stiff spring on each particle's
-/// place in the lattice (its pull grows with p, not with the pressure's gradient), integrated explicitly
-/// like any spring: the 400-layer column of `a_deep_narrow_column_stays_at_rest` burst at
-/// Δt·√(gH)/d = 0.89 and held still at 0.66, at d = 5 mm and at d = 1 cm alike
+/// place in the lattice (its pull grows with p, not with the pressure's gradient), integrated
+/// explicitly like any spring: the 400-layer column of `a_deep_narrow_column_stays_at_rest`
+/// burst at Δt·√(gH)/d = 0.89 and held still at 0.66, at d = 5 mm and at d = 1 cm alike
 /// (docs/deep-columns.md). 0.6 leaves a margin of 1.5; flows rarely meet it, as their CFL
 /// step is shorter.
 pub const PRESSURE_WAVE_STABILITY: f32 = 0.6;
@@ -1202,9 +1202,6 @@ mod tests {
         assert!(pairs > 100, "the fluid must touch the walls: {pairs} pairs");
     }
 
-    /// The wall grid is kept between steps while the walls stand still; the fluid–wall lists
-    /// must stay exact through a shaken tank (which fails without the rebuild), a drawn wall
-    /// and a pour.
     #[test]
     fn output_pressure_keeps_a_linear_field_and_damps_the_row_pattern() {
         // The hexagonal tank, given a linear pressure plus a pattern alternating row by row
@@ -1242,6 +1239,9 @@ mod tests {
         assert!(checked > 100, "{checked}");
     }
 
+    /// The wall grid is kept between steps while the walls stand still; the fluid–wall lists
+    /// must stay exact through a shaken tank (which fails without the rebuild), a drawn wall
+    /// and a pour.
     #[test]
     fn wall_lists_stay_exact_while_the_wall_grid_is_reused() {
         let mut scene = crate::scene::builtin("dam-break").unwrap();
