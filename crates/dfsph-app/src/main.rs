@@ -74,7 +74,33 @@ const IO_ERROR: u8 = 74;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result = match cli.command {
+    // A bad `DFSPH2D_SIMD` is refused before anything runs; the library would quietly take
+    // the fastest path instead.
+    let result = match dfsph::simd::SimdPath::from_env() {
+        Err(e) => Err(Failure::input(e.to_string())),
+        Ok(_) => run_command(cli),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(f) => {
+            // An empty message: the command already said why (`stress`'s summary line).
+            if !f.message.is_empty() {
+                // Not eprintln!: after SIGHUP the terminal may be gone, and a failed print
+                // must not turn a clean stop into a panic.
+                let _ = writeln!(
+                    std::io::stderr(),
+                    "error: {}",
+                    terminal_safe(&one_line(&f.message))
+                );
+            }
+            ExitCode::from(f.code)
+        }
+    }
+}
+
+/// Runs the command `cli` names.
+fn run_command(cli: Cli) -> Result<(), Failure> {
+    match cli.command {
         None => view(ViewArgs {
             scene: None,
             exit_after: None,
@@ -92,22 +118,6 @@ fn main() -> ExitCode {
         Some(Command::Validate(args)) => validate_cmd(args),
         Some(Command::Bench(args)) => bench::bench(args).map_err(Failure::input),
         Some(Command::BenchRow(args)) => bench::run_row(args).map_err(Failure::input),
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(f) => {
-            // An empty message: the command already said why (`stress`'s summary line).
-            if !f.message.is_empty() {
-                // Not eprintln!: after SIGHUP the terminal may be gone, and a failed print
-                // must not turn a clean stop into a panic.
-                let _ = writeln!(
-                    std::io::stderr(),
-                    "error: {}",
-                    terminal_safe(&one_line(&f.message))
-                );
-            }
-            ExitCode::from(f.code)
-        }
     }
 }
 

@@ -21,6 +21,7 @@ use dfsph::kernel::CubicSpline;
 use dfsph::neighbors::{Grid, NeighborLists};
 use dfsph::particles::{BoundaryParticles, FluidParticles};
 use dfsph::scene;
+use dfsph::simd::SimdPath;
 use dfsph::simulation::lattice_kernel_sum;
 use dfsph::solver::{self, Neighborhood, PairCache, SolveLimits, SolverScratch};
 use dfsph::{Simulation, Vec2};
@@ -141,11 +142,7 @@ fn passes(c: &mut Criterion) {
             } else {
                 "32-bit"
             },
-            if dfsph::blocked::simd_available() {
-                "on"
-            } else {
-                "off (portable loop)"
-            }
+            dfsph::simd::SimdPath::in_use()
         );
 
         let mut g = c.benchmark_group("neighbors");
@@ -158,8 +155,9 @@ fn passes(c: &mut Criterion) {
         let mut lists = NeighborLists::default();
         // `fluid_lists_portable`: the same lists with the scalar candidate filter (the path of
         // CPUs without AVX-512F), for the before/after of the SIMD filter.
-        for (label, simd) in [("fluid_lists", true), ("fluid_lists_portable", false)] {
-            s.fluid_grid.set_simd(simd);
+        let (fastest, portable) = (SimdPath::fastest(), SimdPath::Portable);
+        for (label, path) in [("fluid_lists", fastest), ("fluid_lists_portable", portable)] {
+            s.fluid_grid.set_simd_path(path);
             g.bench_function(BenchmarkId::new(label, name), |b| {
                 b.iter(|| {
                     s.fluid_grid
@@ -168,7 +166,7 @@ fn passes(c: &mut Criterion) {
                 })
             });
         }
-        s.fluid_grid.set_simd(true);
+        s.fluid_grid.set_simd_path(fastest);
         g.bench_function(BenchmarkId::new("boundary_lists", name), |b| {
             b.iter(|| {
                 s.boundary_grid

@@ -31,6 +31,7 @@ use rayon::prelude::*;
 
 use crate::kernel::CubicSpline;
 use crate::neighbors::NeighborLists;
+use crate::simd::{lane_kernel, mul_add, SimdPath};
 
 /// Particles per block: one AVX-512 vector of f32.
 pub const LANES: usize = 16;
@@ -58,12 +59,14 @@ pub struct BlockedPairs {
     /// Per entry, the code that picks its neighbour out of its block's windows
     /// ([`window_codes`]); empty unless [`Gather::Windows`] is in use.
     window_code: Vec<u8>,
-    /// Whether the CPU runs the AVX-512 kernels.
+    /// The path the pair loops take ([`SimdPath`]), set by [`Self::prepare`].
+    path: SimdPath,
+    /// Whether that is [`SimdPath::Avx512`].
     avx512: bool,
-    /// How those kernels read neighbour values; [`Gather::for_this_cpu`] unless set.
+    /// How the AVX-512 kernels read neighbour values; [`Gather::for_this_cpu`] unless set.
     gather: Option<Gather>,
-    /// Set by [`Self::set_simd`]: stay on the portable path even where AVX-512 exists.
-    portable_only: bool,
+    /// Set by [`Self::set_simd_path`]: the path to take instead of [`SimdPath::in_use`].
+    forced_path: Option<SimdPath>,
     /// Set by [`Self::set_relative_indices`]: store absolute indices even where relative
     /// ones fit.
     absolute_only: bool,
@@ -198,7 +201,8 @@ impl BlockedPairs {
     pub fn prepare(&mut self, lists: &NeighborLists) {
         let n = lists.len();
         self.n = n;
-        self.avx512 = !self.portable_only && simd_available();
+        self.path = self.forced_path.unwrap_or_else(SimdPath::in_use);
+        self.avx512 = self.path == SimdPath::Avx512;
         let blocks = n.div_ceil(LANES);
         // In one parallel pass over the blocks: each block's width (its longest list), and
         // whether its lists fit relative indices. Ascending lists span from their first entry
@@ -295,6 +299,7 @@ impl BlockedPairs {
             out.push(BlockWriter {
                 n,
                 avx512: self.avx512,
+                path: self.path,
                 gather,
                 slot_start: &self.slot_start,
                 first_block: first,
@@ -418,7 +423,14 @@ impl BlockedPairs {
                     )
                 };
             }
-            scalar_weighted_gradient_sums(idx, first, gx, gy, s)
+            // SAFETY: every index is below `self.n <= s.len()`, and the path is one this
+            // CPU runs.
+            unsafe {
+                lane_kernel!(
+                    self.path,
+                    lane_weighted_gradient_sums::<_>(idx, first, gx, gy, s)
+                )
+            }
         })
     }
 
@@ -445,7 +457,13 @@ impl BlockedPairs {
                     )
                 };
             }
-            scalar_velocity_gradient_dots(idx, first, gx, gy, v)
+            // SAFETY: as above.
+            unsafe {
+                lane_kernel!(
+                    self.path,
+                    lane_velocity_gradient_dots::<_>(idx, first, gx, gy, v)
+                )
+            }
         })
     }
 
@@ -497,7 +515,14 @@ impl BlockedPairs {
                     )
                 };
             }
-            scalar_velocity_gradient_dots(idx, first, gx, gy, vel)
+            // SAFETY: every index is below `self.n <= vel.len()`, and the path is one this
+            // CPU runs.
+            unsafe {
+                lane_kernel!(
+                    self.path,
+                    lane_velocity_gradient_dots::<_>(idx, first, gx, gy, vel)
+                )
+            }
         });
         *errors = [0.0; LANES];
         for (l, (d, r)) in delta.iter_mut().zip(rate.iter_mut()).enumerate() {
@@ -550,7 +575,14 @@ impl BlockedPairs {
                     )
                 };
             }
-            scalar_weighted_gradient_sums(idx, first, gx, gy, kappa)
+            // SAFETY: every index is below `self.n <= kappa.len()`, and the path is one
+            // this CPU runs.
+            unsafe {
+                lane_kernel!(
+                    self.path,
+                    lane_weighted_gradient_sums::<_>(idx, first, gx, gy, kappa)
+                )
+            }
         });
         for (l, v) in vel.iter_mut().enumerate() {
             let i = b * LANES + l;
@@ -685,23 +717,17 @@ impl BlockedPairs {
                     )
                 };
             }
-            let support2 = kernel.support() * kernel.support();
-            let mut sums = [start; LANES];
-            for slot in idx.chunks_exact(LANES) {
-                for (l, &j) in slot.iter().enumerate() {
-                    let j = j.absolute(first);
-                    // Padding repeats the particle itself, which is never its own neighbour.
-                    if j == first + l {
-                        continue;
-                    }
-                    let xj = pos[j] + dt * vel[j];
-                    let r2 = (xi[l] - xj).length_squared();
-                    if r2 < support2 {
-                        sums[l] += volume * kernel.w(r2.sqrt());
-                    }
-                }
+            let path = self.path;
+            // SAFETY: every index is below `self.n <= pos.len(), vel.len()` (checked when
+            // written), and the path is one this CPU runs.
+            unsafe {
+                lane_kernel!(
+                    path,
+                    lane_advected_kernel_sums::<_>(
+                        idx, first, &xi, pos, vel, dt, kernel, volume, start
+                    )
+                )
             }
-            sums
         })
     }
 
@@ -748,31 +774,32 @@ impl BlockedPairs {
                     )
                 };
             }
-            let mut smooth = [Vec2::ZERO; LANES];
-            let mut laplace = [Vec2::ZERO; LANES];
-            for (k, &j) in idx.iter().enumerate() {
-                let (l, j) = (k % LANES, j.absolute(first));
-                // Padding repeats the particle itself, which is never its own neighbour.
-                if j == first + l {
-                    continue;
-                }
-                let xij = xi[l] - pos[j];
-                let vij = vi[l] - vel[j];
-                smooth[l] -= vij * kernel.w(xij.length());
-                if laplacian {
-                    let g = Vec2::new(gx[k], gy[k]);
-                    laplace[l] += g * (vij.dot(xij) / (xij.length_squared() + eps2));
-                }
+            let path = self.path;
+            // SAFETY: the slices hold whole slots, every index is below `self.n <=
+            // pos.len(), vel.len()`, and the path is one this CPU runs.
+            unsafe {
+                lane_kernel!(
+                    path,
+                    lane_viscosity_sums::<_>(
+                        idx, first, gx, gy, &xi, &vi, pos, vel, kernel, eps2, laplacian
+                    )
+                )
             }
-            (smooth, laplace)
         })
     }
 
-    /// Use the SIMD kernels where the CPU has them (the default), or force the portable path
-    /// (tests compare the two).
-    pub fn set_simd(&mut self, on: bool) {
-        self.portable_only = !on;
-        self.avx512 = on && simd_available();
+    /// Take `path` instead of [`SimdPath::in_use`] (tests and benchmarks compare paths). It
+    /// must be one this CPU runs ([`SimdPath::available`]).
+    pub fn set_simd_path(&mut self, path: SimdPath) {
+        assert!(path.available(), "this CPU cannot run the {path} path");
+        self.forced_path = Some(path);
+        self.path = path;
+        self.avx512 = path == SimdPath::Avx512;
+    }
+
+    /// The path the pair loops take.
+    pub fn simd_path(&self) -> SimdPath {
+        self.path
     }
 
     /// Read neighbour values the given way in the SIMD kernels rather than the one
@@ -792,6 +819,8 @@ pub struct BlockWriter<'a> {
     n: usize,
     /// Whether to run the AVX-512 kernels.
     avx512: bool,
+    /// The path the pair loops take.
+    path: SimdPath,
     gather: Gather,
     slot_start: &'a [u32],
     /// The writer's first block.
@@ -949,9 +978,18 @@ impl BlockWriter<'_> {
             IndicesMut::Absolute(index) => Indices::Absolute(&index[e]),
             IndicesMut::Relative(index) => Indices::Relative(&index[e]),
         };
-        with_indices!(idx, |idx| scalar_fluid_sums(
-            idx, first, width, gx, gy, &lens, &xi, &yi, pos, kernel, volume, start,
-        ))
+        let path = self.path;
+        // SAFETY: the slices hold `width` slots, every index was checked against
+        // `self.n <= pos.len()` when written (`lane_indices`), and the path is one this CPU
+        // runs.
+        with_indices!(idx, |idx| unsafe {
+            lane_kernel!(
+                path,
+                lane_fluid_sums::<_>(
+                    idx, first, width, gx, gy, &lens, &xi, &yi, pos, kernel, volume, start,
+                )
+            )
+        })
     }
 }
 
@@ -988,9 +1026,16 @@ fn write_lane_indices<I: SlotIndex>(index: &mut [I], i: usize, n: usize, list: &
     }
 }
 
-/// [`BlockWriter::fill_block`]'s pair loop on the portable path.
+/// [`BlockWriter::fill_block`]'s pair loop on the lane path, slot by slot: each lane's
+/// neighbour position, `∇W` (written to `gx`, `gy`; zero past the lane's list) and the
+/// density sums, in list order with [`CubicSpline::w_and_grad`]'s operations, so every path
+/// gives the same bits. `FUSED` only selects how the code is compiled ([`lane_kernel`]).
+///
+/// # Safety
+/// `idx`, `gx` and `gy` must hold `width` whole slots, and every index be below `pos.len()`.
 #[allow(clippy::too_many_arguments)]
-fn scalar_fluid_sums<I: SlotIndex>(
+#[inline(always)]
+unsafe fn lane_fluid_sums<I: SlotIndex, const FUSED: bool>(
     idx: &[I],
     first: usize,
     width: usize,
@@ -1008,26 +1053,140 @@ fn scalar_fluid_sums<I: SlotIndex>(
         density: [start; LANES],
         ..Default::default()
     };
+    let (mut rx, mut ry) = ([0.0f32; LANES], [0.0f32; LANES]);
+    let (mut w, mut wx, mut wy) = ([0.0f32; LANES], [0.0f32; LANES], [0.0f32; LANES]);
     for s in 0..width {
-        for lane in 0..LANES {
-            let k = s * LANES + lane;
-            let g = if (s as u32) < lens[lane] {
-                let xj = pos[idx[k].absolute(first)];
-                let (w, g) = kernel.w_and_grad(Vec2::new(xi[lane], yi[lane]) - xj);
-                sums.density[lane] += volume * w;
-                let vg = volume * g;
-                sums.grad_x[lane] += vg.x;
-                sums.grad_y[lane] += vg.y;
-                sums.grad_sq[lane] += vg.length_squared();
-                g
-            } else {
-                Vec2::ZERO
-            };
-            gx[k] = g.x;
-            gy[k] = g.y;
+        let k = s * LANES;
+        let xj = gather(pos, first, &idx[k..k + LANES]);
+        for l in 0..LANES {
+            // `Vec2::new(x_i, y_i) − x_j`.
+            (rx[l], ry[l]) = (xi[l] - xj[l].x, yi[l] - xj[l].y);
+        }
+        kernel.w_and_grad_lanes(&rx, &ry, &mut w, &mut wx, &mut wy);
+        let (gx, gy) = (&mut gx[k..k + LANES], &mut gy[k..k + LANES]);
+        for l in 0..LANES {
+            let pair = (s as u32) < lens[l];
+            let (vgx, vgy) = (volume * wx[l], volume * wy[l]);
+            if pair {
+                sums.density[l] += volume * w[l];
+                sums.grad_x[l] += vgx;
+                sums.grad_y[l] += vgy;
+                // `length_squared`: x·x + y·y.
+                sums.grad_sq[l] += vgx * vgx + vgy * vgy;
+            }
+            (gx[l], gy[l]) = if pair { (wx[l], wy[l]) } else { (0.0, 0.0) };
         }
     }
     sums
+}
+
+/// [`BlockedPairs::advected_kernel_sums`]'s lane kernel: per lane, from `start`, `V·W` of
+/// every neighbour within the support at the advected positions, slot by slot in list order
+/// with the scalar expressions' roundings (padding, the particle itself, skipped), so every
+/// path gives the same bits. `FUSED` only selects how the code is compiled.
+///
+/// # Safety
+/// `idx` must hold whole slots, and every index be below `pos.len()` and `vel.len()`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+unsafe fn lane_advected_kernel_sums<I: SlotIndex, const FUSED: bool>(
+    idx: &[I],
+    first: usize,
+    xi: &[Vec2; LANES],
+    pos: &[Vec2],
+    vel: &[Vec2],
+    dt: f32,
+    kernel: &CubicSpline,
+    volume: f32,
+    start: f32,
+) -> [f32; LANES] {
+    let support2 = kernel.support() * kernel.support();
+    let mut sums = [start; LANES];
+    let (mut r, mut w) = ([0.0f32; LANES], [0.0f32; LANES]);
+    let mut near = [false; LANES];
+    for slot in idx.chunks_exact(LANES) {
+        let (pj, vj) = (gather(pos, first, slot), gather(vel, first, slot));
+        for l in 0..LANES {
+            // `x_j + Δt·v_j`, then `(x̃_i − x̃_j).length_squared()`.
+            let (xj, yj) = (pj[l].x + dt * vj[l].x, pj[l].y + dt * vj[l].y);
+            let (dx, dy) = (xi[l].x - xj, xi[l].y - yj);
+            let r2 = dx * dx + dy * dy;
+            // Padding repeats the particle itself, which is never its own neighbour.
+            near[l] = r2 < support2 && slot[l].absolute(first) != first + l;
+            r[l] = r2.sqrt();
+        }
+        kernel.w_lanes(&r, &mut w);
+        for l in 0..LANES {
+            if near[l] {
+                sums[l] += volume * w[l];
+            }
+        }
+    }
+    sums
+}
+
+/// [`BlockedPairs::viscosity_sums`]' lane kernel: XSPH and (with `laplacian`) Laplacian sums
+/// per lane, slot by slot in list order with the scalar expressions' roundings (padding, the
+/// particle itself, skipped), so every path gives the same bits. `FUSED` only selects how the
+/// code is compiled.
+///
+/// # Safety
+/// The three slices must hold whole slots, and every index be below `pos.len()` and
+/// `vel.len()`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+unsafe fn lane_viscosity_sums<I: SlotIndex, const FUSED: bool>(
+    idx: &[I],
+    first: usize,
+    gx: &[f32],
+    gy: &[f32],
+    xi: &[Vec2; LANES],
+    vi: &[Vec2; LANES],
+    pos: &[Vec2],
+    vel: &[Vec2],
+    kernel: &CubicSpline,
+    eps2: f32,
+    laplacian: bool,
+) -> ([Vec2; LANES], [Vec2; LANES]) {
+    let (mut sx, mut sy) = ([0.0f32; LANES], [0.0f32; LANES]);
+    let (mut lx, mut ly) = ([0.0f32; LANES], [0.0f32; LANES]);
+    let (mut r, mut w) = ([0.0f32; LANES], [0.0f32; LANES]);
+    let (mut x, mut y) = ([0.0f32; LANES], [0.0f32; LANES]);
+    let (mut u, mut v) = ([0.0f32; LANES], [0.0f32; LANES]);
+    for ((slot, gx), gy) in idx
+        .chunks_exact(LANES)
+        .zip(gx.chunks_exact(LANES))
+        .zip(gy.chunks_exact(LANES))
+    {
+        let (pj, vj) = (gather(pos, first, slot), gather(vel, first, slot));
+        for l in 0..LANES {
+            (x[l], y[l]) = (xi[l].x - pj[l].x, xi[l].y - pj[l].y);
+            (u[l], v[l]) = (vi[l].x - vj[l].x, vi[l].y - vj[l].y);
+            // `x_ij.length()`.
+            r[l] = (x[l] * x[l] + y[l] * y[l]).sqrt();
+        }
+        kernel.w_lanes(&r, &mut w);
+        for l in 0..LANES {
+            // Padding repeats the particle itself, which is never its own neighbour.
+            let pair = slot[l].absolute(first) != first + l;
+            if pair {
+                sx[l] -= u[l] * w[l];
+                sy[l] -= v[l] * w[l];
+            }
+            if laplacian && pair {
+                // `∇W_ij · (v_ij·x_ij / (|x_ij|² + ε²))`.
+                let ratio = (u[l] * x[l] + v[l] * y[l]) / (x[l] * x[l] + y[l] * y[l] + eps2);
+                lx[l] += gx[l] * ratio;
+                ly[l] += gy[l] * ratio;
+            }
+        }
+    }
+    let mut out = ([Vec2::ZERO; LANES], [Vec2::ZERO; LANES]);
+    for l in 0..LANES {
+        out.0[l] = Vec2::new(sx[l], sy[l]);
+        out.1[l] = Vec2::new(lx[l], ly[l]);
+    }
+    out
 }
 
 /// The per-particle terms of a Jacobi iteration's residual pass
@@ -1075,18 +1234,6 @@ pub struct FluidSums {
     pub grad_sq: [f32; LANES],
 }
 
-/// Whether this CPU runs the AVX-512 kernels.
-pub fn simd_available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx512f")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
 /// How the AVX-512 pair loops read the 16 neighbour values of a slot. Both read the same
 /// values, so results do not depend on the choice.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -1129,28 +1276,36 @@ impl Gather {
     }
 }
 
-/// Calls `pair(lane, j, ∇W)` for every slot of a block, slot by slot: the portable path's
-/// walk, in the same order as the SIMD one.
-#[inline]
-fn for_each_slot<I: SlotIndex>(
-    idx: &[I],
+/// The 16 values `values[j]` of the neighbours `slot` of the block starting at `first`:
+/// the lane kernels' gather, as 16 loads.
+///
+/// # Safety
+/// Every index in `slot` must be below `values.len()`.
+#[inline(always)]
+unsafe fn gather<T: Copy + Default, I: SlotIndex>(
+    values: &[T],
     first: usize,
-    gx: &[f32],
-    gy: &[f32],
-    mut pair: impl FnMut(usize, usize, Vec2),
-) {
-    for ((j, x), y) in idx
-        .chunks_exact(LANES)
-        .zip(gx.chunks_exact(LANES))
-        .zip(gy.chunks_exact(LANES))
-    {
-        for l in 0..LANES {
-            pair(l, j[l].absolute(first), Vec2::new(x[l], y[l]));
-        }
+    slot: &[I],
+) -> [T; LANES] {
+    // `origin(first)` is 0 or `first`, and `first` is an index of the block's own first
+    // particle, so below `values.len()`.
+    let base = values.as_ptr().add(I::origin(first));
+    // A plain loop, not `array::from_fn`: that is not inlined into `with_fma`'s kernels.
+    let mut out = [T::default(); LANES];
+    for (o, j) in out.iter_mut().zip(slot) {
+        *o = *base.offset(j.offset());
     }
+    out
 }
 
-fn scalar_weighted_gradient_sums<I: SlotIndex>(
+/// `Σ_j s_j ∇W_ij` per lane, x and y, slot by slot in list order: the lane kernel of
+/// [`BlockedPairs::weighted_gradient_sums`] (the same sums as the AVX-512 kernel's, with
+/// fused multiply-adds where `FUSED`).
+///
+/// # Safety
+/// The three slices must hold whole slots, and every index must be below `s.len()`.
+#[inline(always)]
+unsafe fn lane_weighted_gradient_sums<I: SlotIndex, const FUSED: bool>(
     idx: &[I],
     first: usize,
     gx: &[f32],
@@ -1159,14 +1314,28 @@ fn scalar_weighted_gradient_sums<I: SlotIndex>(
 ) -> ([f32; LANES], [f32; LANES]) {
     let mut ax = [0.0f32; LANES];
     let mut ay = [0.0f32; LANES];
-    for_each_slot(idx, first, gx, gy, |l, j, g| {
-        ax[l] += s[j] * g.x;
-        ay[l] += s[j] * g.y;
-    });
+    for ((slot, x), y) in idx
+        .chunks_exact(LANES)
+        .zip(gx.chunks_exact(LANES))
+        .zip(gy.chunks_exact(LANES))
+    {
+        let sj = gather(s, first, slot);
+        for l in 0..LANES {
+            ax[l] = mul_add::<FUSED>(sj[l], x[l], ax[l]);
+            ay[l] = mul_add::<FUSED>(sj[l], y[l], ay[l]);
+        }
+    }
     (ax, ay)
 }
 
-fn scalar_velocity_gradient_dots<I: SlotIndex>(
+/// `Σ_j v_j·∇W_ij` per lane: x and y summed apart, slot by slot in list order, then added —
+/// the lane kernel of [`BlockedPairs::velocity_gradient_dots`] (the AVX-512 kernel's order,
+/// with fused multiply-adds where `FUSED`).
+///
+/// # Safety
+/// The three slices must hold whole slots, and every index must be below `v.len()`.
+#[inline(always)]
+unsafe fn lane_velocity_gradient_dots<I: SlotIndex, const FUSED: bool>(
     idx: &[I],
     first: usize,
     gx: &[f32],
@@ -1175,10 +1344,17 @@ fn scalar_velocity_gradient_dots<I: SlotIndex>(
 ) -> [f32; LANES] {
     let mut ax = [0.0f32; LANES];
     let mut ay = [0.0f32; LANES];
-    for_each_slot(idx, first, gx, gy, |l, j, g| {
-        ax[l] += v[j].x * g.x;
-        ay[l] += v[j].y * g.y;
-    });
+    for ((slot, x), y) in idx
+        .chunks_exact(LANES)
+        .zip(gx.chunks_exact(LANES))
+        .zip(gy.chunks_exact(LANES))
+    {
+        let vj = gather(v, first, slot);
+        for l in 0..LANES {
+            ax[l] = mul_add::<FUSED>(vj[l].x, x[l], ax[l]);
+            ay[l] = mul_add::<FUSED>(vj[l].y, y[l], ay[l]);
+        }
+    }
     std::array::from_fn(|l| ax[l] + ay[l])
 }
 
@@ -2245,8 +2421,8 @@ mod tests {
             let mut blocks = BlockedPairs::default();
             blocks.build(&lists, &grads);
             assert_eq!(blocks.blocks(), n.div_ceil(LANES));
-            for simd in [false, true] {
-                blocks.set_simd(simd);
+            for path in SimdPath::available_paths() {
+                blocks.set_simd_path(path);
                 for b in 0..blocks.blocks() {
                     let (sx, sy) = blocks.weighted_gradient_sums(b, &s);
                     let dots = blocks.velocity_gradient_dots(b, &v);
@@ -2264,11 +2440,11 @@ mod tests {
                         let got = glam::DVec2::new(sx[l] as f64, sy[l] as f64);
                         assert!(
                             (got - want).length() < 1e-5,
-                            "n {n}, simd {simd}, particle {i}: {got} against {want}"
+                            "n {n}, path {path}, particle {i}: {got} against {want}"
                         );
                         assert!(
                             (dots[l] as f64 - dot).abs() < 1e-5,
-                            "n {n}, simd {simd}, particle {i}: {} against {dot}",
+                            "n {n}, path {path}, particle {i}: {} against {dot}",
                             dots[l]
                         );
                     }
@@ -2313,8 +2489,8 @@ mod tests {
             };
             let mut blocks = BlockedPairs::default();
             blocks.build(&lists, &grads);
-            for simd in [false, true] {
-                blocks.set_simd(simd);
+            for path in SimdPath::available_paths() {
+                blocks.set_simd_path(path);
                 let mut moved = vel.clone();
                 let mut total: Vec<f32> = (0..n).map(|k| val(k, 9)).collect();
                 let mut delta = vec![0.0f32; n];
@@ -2346,21 +2522,21 @@ mod tests {
                     for i in r {
                         let l = i - b * LANES;
                         let rate = vel[i].dot(grad_sum[i]) - 0.7 * dots[l] - wall_flux[i];
-                        assert_eq!(rates[i].to_bits(), rate.to_bits(), "simd {simd}, {i}");
+                        assert_eq!(rates[i].to_bits(), rate.to_bits(), "path {path}, {i}");
                         let e = (source[i] + 0.25 * rate).max(0.0);
-                        assert_eq!(errors[l].to_bits(), e.to_bits(), "simd {simd}, {i}");
+                        assert_eq!(errors[l].to_bits(), e.to_bits(), "path {path}, {i}");
                         let d = e * factor[i] * 3.0;
-                        assert_eq!(delta[i].to_bits(), d.to_bits(), "simd {simd}, n {n}, {i}");
+                        assert_eq!(delta[i].to_bits(), d.to_bits(), "path {path}, n {n}, {i}");
                         (want_sum, want_max) = (want_sum + e as f64, want_max.max(e as f64));
                         let dv = -(kappa[i] * grad_sum[i] + 0.7 * Vec2::new(sx[l], sy[l]));
                         let v = vel[i] + dv;
                         assert_eq!(
                             (moved[i].x.to_bits(), moved[i].y.to_bits()),
                             (v.x.to_bits(), v.y.to_bits()),
-                            "simd {simd}, n {n}, particle {i}"
+                            "path {path}, n {n}, particle {i}"
                         );
                         let t = val(i, 9) + kappa[i];
-                        assert_eq!(total[i].to_bits(), t.to_bits(), "simd {simd}, {i}");
+                        assert_eq!(total[i].to_bits(), t.to_bits(), "path {path}, {i}");
                         // The left-out particles, and the formula against f64.
                         if source[i] == f32::NEG_INFINITY {
                             assert_eq!(d, 0.0);
@@ -2369,17 +2545,17 @@ mod tests {
                             - 0.7 * dots[l] as f64
                             - wall_flux[i] as f64;
                         let e64 = (source[i] as f64 + 0.25 * rate64).max(0.0);
-                        assert!((e as f64 - e64).abs() < 1e-5, "simd {simd}, {i}");
+                        assert!((e as f64 - e64).abs() < 1e-5, "path {path}, {i}");
                     }
                     let mut group = [[0.0; LANES]; crate::reduce::BLOCKS_TOGETHER];
                     group[0] = errors;
                     let (sum, max) = crate::reduce::fold_block_sums((0.0, 0.0), &group, 1);
-                    assert_eq!(sum.to_bits(), want_sum.to_bits(), "simd {simd}, block {b}");
-                    assert_eq!(max, want_max, "simd {simd}, block {b}");
+                    assert_eq!(sum.to_bits(), want_sum.to_bits(), "path {path}, block {b}");
+                    assert_eq!(max, want_max, "path {path}, block {b}");
                 }
                 // Every particle was written: none of the placeholder zeros remain where a
                 // residual is positive somewhere in the block.
-                assert!(delta.iter().any(|&d| d > 0.0), "simd {simd}: a real test");
+                assert!(delta.iter().any(|&d| d > 0.0), "path {path}: a real test");
             }
         }
     }
@@ -2514,13 +2690,15 @@ mod tests {
                 .flat_map(|p| [p.x.to_bits(), p.y.to_bits()])
                 .collect::<Vec<_>>()
         };
-        for (simd, gather) in [
-            (true, Gather::Windows),
-            (true, Gather::Loads),
-            (false, Gather::Loads),
-        ] {
+        let ways = [
+            (SimdPath::Avx512, Gather::Windows),
+            (SimdPath::Avx512, Gather::Loads),
+            (SimdPath::Fma, Gather::Loads),
+            (SimdPath::Portable, Gather::Loads),
+        ];
+        for (path, gather) in ways.into_iter().filter(|(p, _)| p.available()) {
             let mut blocks = BlockedPairs::default();
-            blocks.set_simd(simd);
+            blocks.set_simd_path(path);
             blocks.set_gather(gather);
             blocks.build(&lists, &grads);
             let count = blocks.blocks();
@@ -2581,7 +2759,7 @@ mod tests {
                     bits(&total),
                 ));
             }
-            assert!(outs[0] == outs[1], "simd {simd}, {gather:?}");
+            assert!(outs[0] == outs[1], "path {path}, {gather:?}");
             assert!(
                 outs[0].4 != bits(&(0..n).map(|k| val(k, 9)).collect::<Vec<_>>()),
                 "a real test"
@@ -2645,7 +2823,7 @@ mod tests {
     /// particles, and a block whose neighbours span four runs is read with loads.
     #[test]
     fn window_codes_name_each_neighbour() {
-        if !simd_available() {
+        if !SimdPath::Avx512.available() {
             return; // Windows exist on the AVX-512 path only.
         }
         let n = 1000;
@@ -2680,14 +2858,14 @@ mod tests {
     fn relative_and_absolute_indices_give_identical_bits() {
         for n in [1000, 37, 16] {
             let (lists, grads) = sorted_random_lists(n);
-            for simd in [true, false] {
+            for path in SimdPath::available_paths() {
                 let run = |relative: bool| {
                     all_kernel_bits(&lists, &grads, |blocks| {
-                        blocks.set_simd(simd);
+                        blocks.set_simd_path(path);
                         blocks.set_relative_indices(relative);
                     })
                 };
-                assert!(run(true) == run(false), "n {n}, simd {simd}");
+                assert!(run(true) == run(false), "n {n}, path {path}");
             }
             let mut blocks = BlockedPairs::default();
             blocks.build(&lists, &grads);

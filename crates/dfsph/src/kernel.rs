@@ -102,6 +102,62 @@ impl CubicSpline {
         }
         (self.w_of_q(q), r * (self.dw_dq(q) * self.inv_h / rl))
     }
+
+    /// [`Self::w_of_q`] without branches: each piece of the spline evaluated, one kept, with
+    /// the same operations, so the same bits. The lane forms below are built on it.
+    #[inline(always)]
+    fn w_of_q_selected(&self, q: f32) -> f32 {
+        let (q2, a) = (q * q, 1.0 - q);
+        let inner = self.k * (6.0 * q2 * q - 6.0 * q2 + 1.0);
+        let outer = 2.0 * self.k * a * a * a;
+        if q <= 0.5 {
+            inner
+        } else if q < 1.0 {
+            outer
+        } else {
+            0.0
+        }
+    }
+
+    /// [`Self::w`] for the 16 distances `r`, into `w`: the same bits, vectorisable.
+    #[inline(always)]
+    pub(crate) fn w_lanes(&self, r: &[f32; 16], w: &mut [f32; 16]) {
+        for l in 0..16 {
+            w[l] = self.w_of_q_selected(r[l] * self.inv_h);
+        }
+    }
+
+    /// [`Self::w_and_grad`] for the 16 offsets `(rx[l], ry[l])`: `W` into `w`, `∇W` into
+    /// `(gx, gy)`. No branches (each lane evaluates both pieces of the spline and keeps one),
+    /// so the compiler can vectorise it; the same operations in the same order as the scalar
+    /// form, so the same bits.
+    #[inline(always)]
+    pub(crate) fn w_and_grad_lanes(
+        &self,
+        rx: &[f32; 16],
+        ry: &[f32; 16],
+        w: &mut [f32; 16],
+        gx: &mut [f32; 16],
+        gy: &mut [f32; 16],
+    ) {
+        for l in 0..16 {
+            let (x, y) = (rx[l], ry[l]);
+            // `Vec2::length`: √(x·x + y·y).
+            let rl = (x * x + y * y).sqrt();
+            let q = rl * self.inv_h;
+            w[l] = self.w_of_q_selected(q);
+            let a = 1.0 - q;
+            let dw = if q <= 0.5 {
+                self.l * q * (3.0 * q - 2.0)
+            } else {
+                -self.l * a * a
+            };
+            let scale = dw * self.inv_h / rl;
+            let outside = rl <= 1.0e-9 || q >= 1.0;
+            gx[l] = if outside { 0.0 } else { x * scale };
+            gy[l] = if outside { 0.0 } else { y * scale };
+        }
+    }
 }
 
 #[cfg(test)]
@@ -162,6 +218,42 @@ mod tests {
             let (w, g) = k.w_and_grad(r);
             assert_eq!(w, k.w(r.length()), "W at {r:?}");
             assert_eq!(g, k.grad_w(r), "∇W at {r:?}");
+        }
+    }
+
+    #[test]
+    fn the_lane_form_gives_the_scalar_bits() {
+        // Both pieces of the spline, their joins, the support's edge, beyond it, zero, and
+        // a NaN offset.
+        let k = CubicSpline::new(0.04);
+        let mut offsets = vec![
+            Vec2::ZERO,
+            Vec2::new(1.0e-10, 0.0),
+            Vec2::new(0.02, 0.0),
+            Vec2::new(0.0, -0.04),
+            Vec2::new(0.05, 0.01),
+            Vec2::new(f32::NAN, 0.01),
+        ];
+        for i in 0..634 {
+            let a = i as f32 * 0.37;
+            let r = (i as f32 / 600.0) * 0.045;
+            offsets.push(Vec2::new(r * a.cos(), r * a.sin()));
+        }
+        for chunk in offsets.chunks_exact(16) {
+            let chunk: &[Vec2; 16] = chunk.try_into().unwrap();
+            let rx = std::array::from_fn(|l| chunk[l].x);
+            let ry = std::array::from_fn(|l| chunk[l].y);
+            let (mut w, mut gx, mut gy) = ([0.0; 16], [0.0; 16], [0.0; 16]);
+            k.w_and_grad_lanes(&rx, &ry, &mut w, &mut gx, &mut gy);
+            let (lengths, mut w_of_r) = (chunk.map(|r| r.length()), [0.0; 16]);
+            k.w_lanes(&lengths, &mut w_of_r);
+            for (l, &r) in chunk.iter().enumerate() {
+                assert_eq!(w_of_r[l].to_bits(), k.w(r.length()).to_bits(), "W({r:?})");
+                let (ws, gs) = k.w_and_grad(r);
+                assert_eq!(w[l].to_bits(), ws.to_bits(), "W at {r:?}");
+                assert_eq!(gx[l].to_bits(), gs.x.to_bits(), "∇W x at {r:?}");
+                assert_eq!(gy[l].to_bits(), gs.y.to_bits(), "∇W y at {r:?}");
+            }
         }
     }
 

@@ -40,6 +40,7 @@ pub mod probes;
 pub mod recording;
 pub mod reduce;
 pub mod scene;
+pub mod simd;
 pub mod simulation;
 pub mod solver;
 

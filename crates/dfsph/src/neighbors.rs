@@ -13,6 +13,7 @@
 //! proportional to the point count and results exact (every candidate is distance-checked).
 
 use crate::parallel::LIGHT_PASS_MIN_ITEMS;
+use crate::simd::SimdPath;
 use glam::Vec2;
 use rayon::prelude::*;
 
@@ -126,9 +127,8 @@ pub struct Grid {
     /// A dense grid is used up to this many cells even for few points (see
     /// [`Grid::set_dense_cells_floor`]).
     dense_cells_floor: usize,
-    /// Set by [`Grid::set_simd`]: filter candidates on the portable path even where AVX-512
-    /// exists.
-    portable_only: bool,
+    /// Set by [`Grid::set_simd_path`]: the path to take instead of [`SimdPath::in_use`].
+    forced_path: Option<SimdPath>,
 }
 
 impl Grid {
@@ -150,10 +150,17 @@ impl Grid {
         self.dense_cells_floor = cells;
     }
 
-    /// Use the AVX-512 candidate filter where the CPU has it (the default), or not. Both
-    /// give the same lists in the same order; the switch is for tests and measurements.
-    pub fn set_simd(&mut self, on: bool) {
-        self.portable_only = !on;
+    /// Take `path` instead of [`SimdPath::in_use`]: the AVX-512 candidate filter on
+    /// [`SimdPath::Avx512`], the scalar one otherwise. Both give the same lists in the same
+    /// order; the switch is for tests and measurements. `path` must be one this CPU runs.
+    pub fn set_simd_path(&mut self, path: SimdPath) {
+        assert!(path.available(), "this CPU cannot run the {path} path");
+        self.forced_path = Some(path);
+    }
+
+    /// Whether the AVX-512 cell passes run.
+    fn avx512(&self) -> bool {
+        self.forced_path.unwrap_or_else(SimdPath::in_use) == SimdPath::Avx512
     }
 
     /// The support radius this grid answers for.
@@ -190,10 +197,7 @@ impl Grid {
         // Counting sort by key.
         let mut keys = std::mem::take(&mut self.keys);
         keys.resize(n, 0);
-        let simd_keys = !self.hashed
-            && !self.portable_only
-            && crate::blocked::simd_available()
-            && self.key_count <= i32::MAX as usize;
+        let simd_keys = !self.hashed && self.avx512() && self.key_count <= i32::MAX as usize;
         keys.par_chunks_mut(LIGHT_PASS_MIN_ITEMS)
             .zip(points.par_chunks(LIGHT_PASS_MIN_ITEMS))
             .for_each(|(k, p)| {
@@ -375,7 +379,7 @@ impl Grid {
         }
         out.offsets[0] = 0;
         out.ascending = !self.hashed;
-        let avx512 = !self.portable_only && crate::blocked::simd_available();
+        let avx512 = self.avx512();
         // Pass 1 (parallel over chunks): each chunk lists its points' neighbours into its own
         // buffer and writes its points' counts.
         out.offsets[1..]
@@ -770,9 +774,9 @@ mod tests {
         lists: &NeighborLists,
     ) {
         let mut portable = NeighborLists::default();
-        grid.set_simd(false);
+        grid.set_simd_path(SimdPath::Portable);
         grid.neighbor_lists(queries, exclude_self, &mut portable);
-        grid.set_simd(true);
+        grid.forced_path = None;
         assert_eq!(portable.offsets, lists.offsets);
         for i in 0..lists.len() {
             assert_eq!(portable.of(i), lists.of(i), "point {i}");
@@ -816,7 +820,7 @@ mod tests {
     /// `None` (said on stderr) where this CPU has no AVX-512.
     #[cfg(target_arch = "x86_64")]
     fn dense_grid_for_simd(radius: f32, points: &[Vec2]) -> Option<Grid> {
-        if !crate::blocked::simd_available() {
+        if !SimdPath::Avx512.available() {
             eprintln!("no AVX-512 on this CPU: nothing to compare");
             return None;
         }

@@ -785,6 +785,7 @@ const MIN_NEIGHBORS_DIVERGENCE: usize = 7;
 mod tests {
     use super::*;
     use crate::neighbors::Grid;
+    use crate::simd::SimdPath;
 
     /// A disordered patch of fluid on a floor of wall particles that move, with neighbour
     /// lists and the step's cache, built as the simulation builds them.
@@ -1011,7 +1012,7 @@ mod tests {
     fn viscosity_sums_on_the_blocks_are_the_pair_formulas() {
         let p = patch();
         let mut portable = p.cache.clone();
-        portable.blocks.set_simd(false);
+        portable.blocks.set_simd_path(SimdPath::Portable);
         let (x, v) = (&p.fluid.position, &p.fluid.velocity);
         let h = p.kernel.support();
         let eps2 = 0.01 * h * h;
@@ -1062,7 +1063,7 @@ mod tests {
         // (Without AVX-512 both runs take the portable path.)
         let p = patch();
         let mut portable = p.cache.clone();
-        portable.blocks.set_simd(false);
+        portable.blocks.set_simd_path(SimdPath::Portable);
         let simd_nb = Neighborhood::new(&p.fluid_lists, &p.boundary_lists, &p.cache);
         let portable_nb = Neighborhood::new(&p.fluid_lists, &p.boundary_lists, &portable);
         let (x, v) = (&p.fluid.position, &p.fluid.velocity);
@@ -1091,7 +1092,7 @@ mod tests {
         let p = patch();
         let mut fluid = p.fluid.clone();
         let mut portable = PairCache::default();
-        portable.blocks.set_simd(false);
+        portable.blocks.set_simd_path(SimdPath::Portable);
         density_and_factor(
             &p.kernel,
             p.volume,
@@ -1115,7 +1116,7 @@ mod tests {
         assert_eq!(bits(&portable.wall_flux), bits(&p.cache.wall_flux));
         // The cached gradients: the same sums of them, both read on the portable path.
         let mut simd = p.cache.clone();
-        simd.blocks.set_simd(false);
+        simd.blocks.set_simd_path(SimdPath::Portable);
         let kappa: Vec<f32> = (0..fluid.len() as u32).map(|k| 1.0 + jitter(k)).collect();
         for b in 0..simd.blocks.blocks() {
             let (a, c) = (

@@ -4,6 +4,7 @@ use std::time::{Duration, Instant};
 
 use dfsph::neighbors::Grid;
 use dfsph::scene::{self, Method, Scene, TimeStepParams};
+use dfsph::simd::SimdPath;
 use dfsph::{Simulation, Vec2};
 
 use super::{Code, Row, RowArgs};
@@ -229,14 +230,15 @@ fn cpu_model() -> String {
         .unwrap_or_else(|| "unknown".into())
 }
 
-/// What the solver's pair loops run on this CPU, and how they read neighbour values.
+/// The path the solver's pair loops take ([`SimdPath::in_use`]: `DFSPH2D_SIMD` or the
+/// fastest), and on AVX-512 how they read neighbour values.
 fn runtime_simd() -> String {
-    use dfsph::blocked::{simd_available, Gather};
-    match (simd_available(), Gather::for_this_cpu()) {
-        (false, _) => "portable".into(),
-        (true, Gather::Instruction) => "avx512f-gathers".into(),
-        (true, Gather::Loads) => "avx512f-loads".into(),
-        (true, Gather::Windows) => "avx512f-windows".into(),
+    use dfsph::blocked::Gather;
+    match (SimdPath::in_use(), Gather::for_this_cpu()) {
+        (SimdPath::Avx512, Gather::Instruction) => "avx512f-gathers".into(),
+        (SimdPath::Avx512, Gather::Loads) => "avx512f-loads".into(),
+        (SimdPath::Avx512, Gather::Windows) => "avx512f-windows".into(),
+        (path, _) => path.name().into(),
     }
 }
 
