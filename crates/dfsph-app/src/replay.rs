@@ -7,6 +7,7 @@ use std::path::Path;
 
 use anyhow::Result;
 use dfsph::recording::{fingerprint_hex, Entry, Recording};
+use dfsph::simd::SimdPath;
 use dfsph::{Action, Scene, Simulation};
 
 use crate::run::{self, Driver, RunOutcome, RunPlan};
@@ -199,6 +200,19 @@ pub fn execute(
         driver.rejected,
         driver.resets
     );
+    // Bits match only on the same SIMD path: a replay on another one says so.
+    let here = SimdPath::in_use();
+    let other_path = recording
+        .header
+        .simd_path()
+        .filter(|&recorded| recorded != here);
+    if let Some(recorded) = other_path {
+        note.push_str(&format!(
+            "; recorded on the {recorded} SIMD path, replayed on {here} (set {}={recorded} to \
+             replay it bit for bit)",
+            dfsph::simd::ENV
+        ));
+    }
     let mut diverged = None;
     match (&recording.end, &driver.final_fingerprint) {
         _ if by_time => note.push_str("; --until given, final state not compared"),
@@ -210,21 +224,27 @@ pub fn execute(
         (Some(end), Some(got)) => {
             let threads = rayon::current_num_threads();
             note.push_str(&format!("; final state DIFFERS from the recording ({got})"));
+            let why = if let Some(recorded) = other_path {
+                format!(
+                    " (results are bit-identical only on the same SIMD path: recorded on \
+                     {recorded}, replayed on {here}; try {}={recorded})",
+                    dfsph::simd::ENV
+                )
+            } else if recording.header.threads != threads {
+                " (results are bit-identical only for the same thread count: try --threads)".into()
+            } else {
+                String::new()
+            };
             diverged = Some(format!(
                 "the replay diverged from the recording: final state {got} (t = {:.6} s, {} \
                  fluid particles), recorded {} (t = {:.6} s, {} fluid particles); recorded with \
-                 {} threads, replayed with {threads}{}",
+                 {} threads, replayed with {threads}{why}",
                 outcome.time,
                 outcome.n_fluid,
                 end.fingerprint,
                 end.time,
                 end.n_fluid,
                 recording.header.threads,
-                if recording.header.threads == threads {
-                    ""
-                } else {
-                    " (results are bit-identical only for the same thread count: try --threads)"
-                }
             ));
         }
     }

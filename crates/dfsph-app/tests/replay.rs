@@ -7,7 +7,8 @@ use std::process::Output;
 
 mod common;
 
-use common::{coarse_scene, dfsph2d, replay, text};
+use common::{coarse_scene, dfsph2d, dfsph2d_with, replay, text};
+use dfsph::simd::SimdPath;
 
 /// Every file under `dir/particles`, sorted by name, with its bytes.
 fn particle_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
@@ -196,6 +197,68 @@ fn a_diverging_replay_exits_1_and_says_so() {
     assert!(stderr.starts_with("error: the replay diverged"), "{stderr}");
     assert_eq!(stderr.lines().count(), 1);
     assert!(text(&out.stdout).contains("DIFFERS"));
+}
+
+/// A recording made on the portable SIMD path and replayed on the fastest one: the replay says
+/// which path made it; where the final state differs, the error names the setting that
+/// replays it bit for bit, and with that setting the final state matches.
+#[test]
+fn a_replay_on_another_simd_path_says_so() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = coarse_scene(tmp.path());
+    let rec = tmp.path().join("portable.jsonl");
+    let portable = [("DFSPH2D_SIMD", "portable")];
+    let out = dfsph2d_with(
+        &[
+            "stress",
+            scene.to_str().unwrap(),
+            "--seed",
+            "2",
+            "--steps",
+            "300",
+            "--threads",
+            "2",
+            "--record",
+            rec.to_str().unwrap(),
+        ],
+        &portable,
+    );
+    assert!(
+        matches!(out.status.code(), Some(0 | 1)),
+        "{}",
+        text(&out.stderr)
+    );
+    let recording = std::fs::read_to_string(&rec).unwrap();
+    let header: serde_json::Value =
+        serde_json::from_str(recording.lines().next().unwrap()).unwrap();
+    assert_eq!(header["simd"], "portable");
+    let replay_with = |dir: &str, env: &[(&str, &str)]| {
+        let out_dir = tmp.path().join(dir);
+        let (scene, rec, out_dir) = (scene.to_str().unwrap(), rec.to_str().unwrap(), out_dir);
+        let args = [
+            "run",
+            scene,
+            "--replay",
+            rec,
+            "--out",
+            out_dir.to_str().unwrap(),
+        ];
+        dfsph2d_with(&args, env)
+    };
+    let fastest = SimdPath::fastest();
+    if fastest != SimdPath::Portable {
+        let out = replay_with("fastest", &[("DFSPH2D_SIMD", fastest.name())]);
+        let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+        let said = format!("recorded on the portable SIMD path, replayed on {fastest}");
+        assert!(stdout.contains(&said), "{stdout}");
+        if !out.status.success() {
+            assert!(stderr.contains("try DFSPH2D_SIMD=portable"), "{stderr}");
+        }
+    }
+    let out = replay_with("portable", &portable);
+    let stdout = succeeded(out);
+    assert!(stdout.contains("final state matches"), "{stdout}");
+    assert!(!stdout.contains("SIMD path"), "{stdout}");
 }
 
 #[test]

@@ -493,7 +493,7 @@ impl BlockedPairs {
         assert!(delta.len() == lanes && rate.len() == lanes);
         let (idx, gx, gy) = self.block(b);
         let first = b * LANES;
-        let fluid = with_indices!(idx, |idx| {
+        with_indices!(idx, |idx| {
             #[cfg(target_arch = "x86_64")]
             if self.avx512 {
                 // SAFETY: AVX-512F is present (checked in `prepare`), every index is below
@@ -515,23 +515,15 @@ impl BlockedPairs {
                     )
                 };
             }
-            // SAFETY: every index is below `self.n <= vel.len()`, and the path is one this
-            // CPU runs.
+            // SAFETY: every index is below `self.n <= vel.len()`, the per-particle arrays
+            // hold the block's particles (asserted above), and the path is one this CPU runs.
             unsafe {
                 lane_kernel!(
                     self.path,
-                    lane_velocity_gradient_dots::<_>(idx, first, gx, gy, vel)
+                    lane_residual_block::<_>(idx, gx, gy, vel, first, terms, delta, rate, errors)
                 )
             }
-        });
-        *errors = [0.0; LANES];
-        for (l, (d, r)) in delta.iter_mut().zip(rate.iter_mut()).enumerate() {
-            let i = b * LANES + l;
-            *r = vel[i].dot(terms.grad_sum[i]) - terms.volume * fluid[l] - terms.wall_flux[i];
-            let e = (terms.source[i] + terms.rate_scale * *r).max(0.0);
-            *d = e * terms.factor[i] * terms.increment_scale;
-            errors[l] = e;
-        }
+        })
     }
 
     /// Apply the stiffness field `kappa` to the velocities of block `b`'s particles (`vel`,
@@ -553,8 +545,7 @@ impl BlockedPairs {
         assert!(total.as_ref().is_none_or(|t| t.len() == lanes));
         let (idx, gx, gy) = self.block(b);
         let first = b * LANES;
-        let mut total = total;
-        let (sx, sy) = with_indices!(idx, |idx| {
+        with_indices!(idx, |idx| {
             #[cfg(target_arch = "x86_64")]
             if self.avx512 {
                 // SAFETY: AVX-512F is present, every index is below `self.n <= kappa.len()`,
@@ -575,22 +566,15 @@ impl BlockedPairs {
                     )
                 };
             }
-            // SAFETY: every index is below `self.n <= kappa.len()`, and the path is one
-            // this CPU runs.
+            // SAFETY: every index is below `self.n <= kappa.len()`, `kappa` and `grad_sum`
+            // hold the block's particles (asserted above), and the path is one this CPU runs.
             unsafe {
                 lane_kernel!(
                     self.path,
-                    lane_weighted_gradient_sums::<_>(idx, first, gx, gy, kappa)
+                    lane_apply_block::<_>(idx, gx, gy, kappa, first, grad_sum, volume, vel, total)
                 )
             }
-        });
-        for (l, v) in vel.iter_mut().enumerate() {
-            let i = b * LANES + l;
-            *v += -(kappa[i] * grad_sum[i] + volume * Vec2::new(sx[l], sy[l]));
-            if let Some(t) = total.as_deref_mut() {
-                t[l] += kappa[i];
-            }
-        }
+        })
     }
 
     /// [`Self::residual_block`] for the consecutive blocks `blocks`: `delta` and `rate` hold
@@ -619,10 +603,13 @@ impl BlockedPairs {
                 avx512::residual_blocks(self, idx, blocks, vel, terms, delta, rate, errors)
             });
         }
-        let lanes = delta.chunks_mut(LANES).zip(rate.chunks_mut(LANES));
-        for ((b, (d, r)), e) in blocks.zip(lanes).zip(errors) {
-            self.residual_block(b, vel, terms, d, r, e);
-        }
+        // SAFETY: as above, and the path is one this CPU runs.
+        with_indices!(self.indices(), |idx| unsafe {
+            lane_kernel!(
+                self.path,
+                lane_residual_blocks::<_>(self, idx, blocks, vel, terms, delta, rate, errors)
+            )
+        })
     }
 
     /// [`Self::apply_block`] for the consecutive blocks `blocks`: `vel` and `total`, when
@@ -651,13 +638,13 @@ impl BlockedPairs {
                 avx512::apply_blocks(self, idx, blocks, volume, kappa, grad_sum, vel, total)
             });
         }
-        let mut total = total;
-        for (k, (b, v)) in blocks.zip(vel.chunks_mut(LANES)).enumerate() {
-            let t = total
-                .as_deref_mut()
-                .map(|t| &mut t[k * LANES..k * LANES + v.len()]);
-            self.apply_block(b, volume, kappa, grad_sum, v, t);
-        }
+        // SAFETY: as above, and the path is one this CPU runs.
+        with_indices!(self.indices(), |idx| unsafe {
+            lane_kernel!(
+                self.path,
+                lane_apply_blocks::<_>(self, idx, blocks, volume, kappa, grad_sum, vel, total)
+            )
+        })
     }
 
     /// `value(i)` for each lane's particle `i` of block `b`. Lanes past the last particle
@@ -1187,6 +1174,135 @@ unsafe fn lane_viscosity_sums<I: SlotIndex, const FUSED: bool>(
         out.1[l] = Vec2::new(lx[l], ly[l]);
     }
     out
+}
+
+/// [`BlockedPairs::residual_block`]'s lane kernel: the pair loop of
+/// [`lane_velocity_gradient_dots`], then the per-particle terms lane by lane (the AVX-512
+/// kernel's operations in its order).
+///
+/// # Safety
+/// The three slices must hold whole slots, every index be below `vel.len()`, `vel` and the
+/// arrays of `terms` must hold the `delta.len()` (≤ 16) particles from `first` on, and `rate`
+/// as many entries as `delta`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+unsafe fn lane_residual_block<I: SlotIndex, const FUSED: bool>(
+    idx: &[I],
+    gx: &[f32],
+    gy: &[f32],
+    vel: &[Vec2],
+    first: usize,
+    terms: &ResidualTerms,
+    delta: &mut [f32],
+    rate: &mut [f32],
+    errors: &mut [f32; LANES],
+) {
+    let fluid = lane_velocity_gradient_dots::<I, FUSED>(idx, first, gx, gy, vel);
+    let particles = first..first + delta.len();
+    let (vel, grad_sum) = (&vel[particles.clone()], &terms.grad_sum[particles.clone()]);
+    let (flux, source) = (
+        &terms.wall_flux[particles.clone()],
+        &terms.source[particles.clone()],
+    );
+    let factor = &terms.factor[particles];
+    *errors = [0.0; LANES];
+    for l in 0..delta.len() {
+        // r_i = v_i·g_i − V·Σ_j v_j·∇W_ij − f_i, e_i = max(s_i + c·r_i, 0), Δκ_i = e_i·a_i·c'.
+        let r = vel[l].dot(grad_sum[l]) - terms.volume * fluid[l] - flux[l];
+        let e = (source[l] + terms.rate_scale * r).max(0.0);
+        rate[l] = r;
+        delta[l] = e * factor[l] * terms.increment_scale;
+        errors[l] = e;
+    }
+}
+
+/// [`BlockedPairs::apply_block`]'s lane kernel: the pair loop of
+/// [`lane_weighted_gradient_sums`], then `Δv` and the running total lane by lane (the AVX-512
+/// kernel's operations in its order).
+///
+/// # Safety
+/// The three slices must hold whole slots, every index be below `kappa.len()`, `kappa` and
+/// `grad_sum` must hold the `vel.len()` (≤ 16) particles from `first` on, and `total`, when
+/// given, as many entries as `vel`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+unsafe fn lane_apply_block<I: SlotIndex, const FUSED: bool>(
+    idx: &[I],
+    gx: &[f32],
+    gy: &[f32],
+    kappa: &[f32],
+    first: usize,
+    grad_sum: &[Vec2],
+    volume: f32,
+    vel: &mut [Vec2],
+    total: Option<&mut [f32]>,
+) {
+    let (sx, sy) = lane_weighted_gradient_sums::<I, FUSED>(idx, first, gx, gy, kappa);
+    let particles = first..first + vel.len();
+    let (ki, gi) = (&kappa[particles.clone()], &grad_sum[particles]);
+    for l in 0..vel.len() {
+        // Δv_i = −(κ_i·g_i + V·Σ_j κ_j ∇W_ij).
+        vel[l] += -(ki[l] * gi[l] + volume * Vec2::new(sx[l], sy[l]));
+    }
+    if let Some(t) = total {
+        for (t, k) in t.iter_mut().zip(ki) {
+            *t += k;
+        }
+    }
+}
+
+/// [`BlockedPairs::residual_blocks`]' lane kernel: [`lane_residual_block`] block by block,
+/// with `idx` every block's indices.
+///
+/// # Safety
+/// As [`lane_residual_block`] for each block: `idx` must be `pairs`' indices, every index
+/// below `vel.len()`, `vel` and the arrays of `terms` must hold all particles, and `delta`,
+/// `rate` and `errors` those of `blocks`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+unsafe fn lane_residual_blocks<I: SlotIndex, const FUSED: bool>(
+    pairs: &BlockedPairs,
+    idx: &[I],
+    blocks: Range<usize>,
+    vel: &[Vec2],
+    terms: &ResidualTerms,
+    delta: &mut [f32],
+    rate: &mut [f32],
+    errors: &mut [[f32; LANES]],
+) {
+    let lanes = delta.chunks_mut(LANES).zip(rate.chunks_mut(LANES));
+    for ((b, (d, r)), e) in blocks.zip(lanes).zip(errors) {
+        let (idx, gx, gy) = pairs.block_of(idx, b);
+        lane_residual_block::<I, FUSED>(idx, gx, gy, vel, b * LANES, terms, d, r, e);
+    }
+}
+
+/// [`BlockedPairs::apply_blocks`]' lane kernel: [`lane_apply_block`] block by block, with
+/// `idx` every block's indices.
+///
+/// # Safety
+/// As [`lane_apply_block`] for each block: `idx` must be `pairs`' indices, every index below
+/// `kappa.len()`, `kappa` and `grad_sum` must hold all particles, and `vel` and `total`,
+/// when given, those of `blocks`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+unsafe fn lane_apply_blocks<I: SlotIndex, const FUSED: bool>(
+    pairs: &BlockedPairs,
+    idx: &[I],
+    blocks: Range<usize>,
+    volume: f32,
+    kappa: &[f32],
+    grad_sum: &[Vec2],
+    vel: &mut [Vec2],
+    mut total: Option<&mut [f32]>,
+) {
+    for (k, (b, v)) in blocks.zip(vel.chunks_mut(LANES)).enumerate() {
+        let (idx, gx, gy) = pairs.block_of(idx, b);
+        let t = total
+            .as_deref_mut()
+            .map(|t| &mut t[k * LANES..k * LANES + v.len()]);
+        lane_apply_block::<I, FUSED>(idx, gx, gy, kappa, b * LANES, grad_sum, volume, v, t);
+    }
 }
 
 /// The per-particle terms of a Jacobi iteration's residual pass

@@ -6,7 +6,7 @@
 //! `docs/recording.md`:
 //!
 //! ```text
-//! {"format":"dfsph2d-recording","version":1,"source":"view","threads":8,"scene":{...}}
+//! {"format":"dfsph2d-recording","version":1,"source":"view","threads":8,"simd":"fma","scene":{...}}
 //! {"step":0,"action":"shake_tank","direction":1.0}
 //! {"step":120,"action":"push","at":[1.5,0.4],"radius":0.2,"strength":-80.0}
 //! {"step":180,"action":"release_pointer"}
@@ -27,6 +27,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::actions::Action;
 use crate::scene::Scene;
+use crate::simd::SimdPath;
 use crate::simulation::Simulation;
 
 /// The `format` value of the header line.
@@ -51,21 +52,31 @@ pub struct Header {
     /// Worker threads of the recording process (results are bit-identical only for the same
     /// thread count).
     pub threads: usize,
+    /// The SIMD path of the recording process ([`SimdPath::name`]): results are bit-identical
+    /// only on the same path. Absent in recordings made before it was noted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub simd: Option<String>,
     /// The scene exactly as the simulation started, every key present (for the viewer, with
     /// its pour budget in `max_particles`).
     pub scene: Scene,
 }
 
 impl Header {
-    /// A header for a session on `scene`.
+    /// A header for a session on `scene`, run on this process's SIMD path.
     pub fn new(source: impl Into<String>, threads: usize, scene: &Scene) -> Self {
         Self {
             format: FORMAT.into(),
             version: VERSION,
             source: source.into(),
             threads,
+            simd: Some(SimdPath::in_use().name().into()),
             scene: scene.clone(),
         }
+    }
+
+    /// The recording's SIMD path where it names one.
+    pub fn simd_path(&self) -> Option<SimdPath> {
+        self.simd.as_deref().and_then(SimdPath::from_name)
     }
 }
 
@@ -312,6 +323,14 @@ fn parse_header(line: &str) -> Result<Header, String> {
         let path = e.path().to_string();
         format!("header: `{path}`: {}", e.into_inner())
     })?;
+    if let Some(simd) = header.simd.as_deref() {
+        if SimdPath::from_name(simd).is_none() {
+            return Err(format!(
+                "header: `simd` must be one of avx512, fma, portable, got {:?}",
+                simd.chars().take(40).collect::<String>()
+            ));
+        }
+    }
     if !(1..=MAX_THREADS).contains(&header.threads) {
         return Err(format!(
             "header: `threads` must be 1 to {MAX_THREADS} worker threads, got {}",
@@ -474,6 +493,17 @@ mod tests {
         let mut no_end = rec.clone();
         no_end.end = None;
         assert_eq!(Recording::parse(&no_end.to_text()).unwrap().steps(), 7);
+        // The SIMD path is noted, and a recording from before it was noted still reads.
+        let path = SimdPath::in_use();
+        assert_eq!(back.header.simd_path(), Some(path));
+        let older = text.replacen(&simd_key(path.name()), "", 1);
+        assert_ne!(older, text);
+        assert_eq!(Recording::parse(&older).unwrap().header.simd, None);
+    }
+
+    /// The header's `simd` key with the value `name`, as written (with its comma).
+    fn simd_key(name: &str) -> String {
+        format!("\"simd\":\"{name}\",")
     }
 
     #[test]
@@ -540,6 +570,10 @@ mod tests {
             (
                 good.replacen("\"threads\":2", "\"threads\":0", 1),
                 "`threads` must be 1 to 1024",
+            ),
+            (
+                good.replacen(&simd_key(SimdPath::in_use().name()), &simd_key("sse9"), 1),
+                "line 1: header: `simd` must be one of avx512, fma, portable, got \"sse9\"",
             ),
             (with(1, "{\"step\": 0"), "line 2: not valid JSON"),
             (with(2, "[]"), "line 3: expected an object"),

@@ -14,11 +14,17 @@ pub const COARSE: &str = r#"{"particle_radius": 0.05}"#;
 /// Run `dfsph2d` with no display, as on a headless machine, and with backtraces asked for: a
 /// panic must never reach a user, and tests that check stderr see one at once if it does.
 pub fn dfsph2d(args: &[&str]) -> Output {
+    dfsph2d_with(args, &[])
+}
+
+/// [`dfsph2d`] with the environment variables `env` set.
+pub fn dfsph2d_with(args: &[&str], env: &[(&str, &str)]) -> Output {
     Command::new(BIN)
         .args(args)
         .env_remove("DISPLAY")
         .env_remove("WAYLAND_DISPLAY")
         .env("RUST_BACKTRACE", "1")
+        .envs(env.iter().copied())
         .output()
         .expect("dfsph2d runs")
 }
