@@ -17,12 +17,14 @@
 use std::marker::PhantomData;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 /// Busy-wait rounds at a barrier before the waiting worker starts yielding (about 30–60 µs
 /// of `pause`): a pass's shares end within microseconds of each other, but a worker
 /// descheduled by the host, or sharing its core with another thread, may be late by a whole
 /// time slice, and spinning through that would keep the late one off the core. After that
-/// the waiting worker runs its own pending work, if any, else yields its core.
+/// the waiting worker yields its core between polls.
 const SPINS_BEFORE_YIELD: u32 = 1 << 11;
 
 /// One worker's view of the region.
@@ -37,9 +39,9 @@ impl Team<'_> {
         self.index
     }
 
-    /// Workers in the region.
+    /// Members of the region.
     pub fn count(&self) -> usize {
-        self.region.count
+        self.region.count()
     }
 
     /// Wait until every worker of the region has reached this call: what any worker wrote
@@ -145,15 +147,40 @@ fn unpack(state: u64) -> (usize, usize) {
     ((state >> 32) as usize, (state & 0xffff_ffff) as usize)
 }
 
-/// Run `body` on every worker of the current rayon pool at once (one worker when called
-/// outside any pool with a one-thread global pool). Returns each worker's result, in worker
-/// order.
+/// How long the thread that starts a region waits for the pool's other workers to join it
+/// before it closes the door and starts with those that did. Workers polling for tasks (a
+/// step runs with them at hand, `parallel::with_workers_at_hand`) join within a
+/// microsecond or two, once all have joined the wait ends; a worker asleep takes 10–50 µs
+/// to wake on the virtual machine of docs/PERFORMANCE.md; a worker that is busy elsewhere,
+/// or blocked in an application's task, may never come, and the region runs without it.
+const JOIN_WINDOW: Duration = Duration::from_micros(200);
+
+/// Run `body` on the calling thread and on every worker of the current rayon pool that
+/// joins within [`JOIN_WINDOW`], at once. Returns each member's result, in member order;
+/// the caller is member 0, so a region always has a member and finishes whatever the
+/// pool's other workers are doing.
 ///
-/// If one worker panics, the others panic at their next [`Team::wait`] rather than wait
-/// for it forever, and the panic reaches the caller.
+/// Progress does not depend on them: the other workers are invited with
+/// `rayon::spawn_broadcast`, which does not wait for them; the members are fixed when the
+/// door closes, and a barrier waits only for members, which run nothing but `body` until it
+/// returns (a barrier spins, then yields its core, and never runs other tasks). An
+/// invitation taken after the door closed returns at once.
+///
+/// If one member panics, the others panic at their next [`Team::wait`] rather than wait
+/// for it forever, and the first panic reaches the caller once every member has stopped.
 pub fn run<R: Send>(body: impl Fn(&Team) -> R + Sync) -> Vec<R> {
-    let region = Region::new(rayon::current_num_threads());
-    if region.count == 1 {
+    run_joined_within(JOIN_WINDOW, body)
+}
+
+/// [`run`], with the workers given `window` to join (the wait ends as soon as all have).
+fn run_joined_within<R: Send>(window: Duration, body: impl Fn(&Team) -> R + Sync) -> Vec<R> {
+    let workers = rayon::current_num_threads();
+    let outside = rayon::current_thread_index().is_none();
+    // At most every worker, plus the caller where it is not one of them.
+    let most = workers + usize::from(outside);
+    if workers == 1 {
+        let region = Region::new(1);
+        region.door.store(CLOSED, Ordering::Release);
         return vec![body(&Team {
             index: 0,
             region: &region,
@@ -161,29 +188,124 @@ pub fn run<R: Send>(body: impl Fn(&Team) -> R + Sync) -> Vec<R> {
     }
     // Started from outside the pool, the region is pool work in progress just as a step
     // is: no step may run at hand meanwhile (`parallel::alone_in_flight`).
-    let _in_flight = rayon::current_thread_index()
-        .is_none()
-        .then(|| crate::parallel::alone_in_flight().0);
-    rayon::broadcast(|ctx| {
+    let _in_flight = outside.then(|| crate::parallel::alone_in_flight().0);
+    let region = Arc::new(Region::new(most));
+    let results: Vec<Mutex<Option<R>>> = (0..most).map(|_| Mutex::new(None)).collect();
+    let member = |index: usize| {
         let team = Team {
-            index: ctx.index(),
+            index,
             region: &region,
         };
-        let guard = PoisonOnUnwind(&region);
         let result = body(&team);
-        std::mem::forget(guard);
-        result
-    })
+        *results[index].lock().unwrap_or_else(|e| e.into_inner()) = Some(result);
+    };
+    let member: &(dyn Fn(usize) + Sync) = &member;
+    // SAFETY: the invitations outlive this call, the closure they reach does not. An
+    // invitation calls it only after joining, which only happens before the door closes
+    // below, and this function returns only after every member that joined has finished
+    // (`wait_for_members`), also when a member or the caller panics. The lifetime is erased
+    // for the `'static` bound of `spawn_broadcast`, and restored in this sense.
+    let member: &'static (dyn Fn(usize) + Sync) = unsafe { std::mem::transmute(member) };
+    let invitation = Invitation {
+        region: Arc::clone(&region),
+        member: MemberPtr(member as *const _),
+    };
+    rayon::spawn_broadcast(move |_| invitation.accept());
+
+    let opened = Instant::now();
+    while region.joined() < most - 1 && opened.elapsed() < window {
+        std::hint::spin_loop();
+    }
+    region.close();
+    // Member 0 (this thread); then wait for the others whatever happened.
+    let caller = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let _poison = PoisonOnUnwind(&region);
+        member(0);
+        std::mem::forget(_poison);
+    }));
+    region.wait_for_members();
+    // A member's own panic before the caller's, which may only echo it at a barrier.
+    if let Some(panic) = region
+        .panic
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .take()
+    {
+        std::panic::resume_unwind(panic);
+    }
+    if let Err(panic) = caller {
+        std::panic::resume_unwind(panic);
+    }
+    let members = region.count();
+    results
+        .into_iter()
+        .take(members)
+        .map(|r| {
+            r.into_inner()
+                .unwrap_or_else(|e| e.into_inner())
+                .expect("every member returned")
+        })
+        .collect()
 }
 
-/// What the workers of one region share: a counting barrier, and the parts of each
-/// worker's share not yet taken.
+/// Set in [`Region::door`] once the members are fixed; the bits below count the workers
+/// that joined the caller.
+const CLOSED: usize = 1 << (usize::BITS - 1);
+
+/// A raw pointer to a region's member closure ([`run`]), to send with an invitation.
+#[derive(Clone, Copy)]
+struct MemberPtr(*const (dyn Fn(usize) + Sync));
+
+// SAFETY: the closure is `Sync`, and [`run`] keeps it alive while any member may call it.
+unsafe impl Send for MemberPtr {}
+unsafe impl Sync for MemberPtr {}
+
+/// What a worker of the pool is sent when a region starts.
+struct Invitation {
+    region: Arc<Region>,
+    member: MemberPtr,
+}
+
+impl Invitation {
+    /// Join the region if its door is still open, and run the member closure once the door
+    /// has closed; else return at once.
+    fn accept(&self) {
+        let region = &self.region;
+        let Some(index) = region.join() else {
+            return;
+        };
+        while region.door.load(Ordering::Acquire) & CLOSED == 0 {
+            // The caller closes the door within JOIN_WINDOW.
+            std::hint::spin_loop();
+        }
+        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            let _poison = PoisonOnUnwind(region);
+            // SAFETY: this member joined before the door closed, and `run` does not return
+            // before it has finished (see there).
+            unsafe { (*self.member.0)(index) };
+            std::mem::forget(_poison);
+        }));
+        if let Err(panic) = outcome {
+            let mut first = region.panic.lock().unwrap_or_else(|e| e.into_inner());
+            first.get_or_insert(panic);
+        }
+        region.finished.fetch_add(1, Ordering::AcqRel);
+    }
+}
+
+/// What the members of one region share: the door, a counting barrier, and the parts of
+/// each member's share not yet taken.
 struct Region {
+    /// [`CLOSED`] once the members are fixed, plus the number of workers that joined.
+    door: AtomicUsize,
+    /// Members other than the caller that have finished.
+    finished: AtomicUsize,
     arrived: AtomicUsize,
     generation: AtomicUsize,
-    count: usize,
     poisoned: AtomicBool,
-    /// Per worker, the parts of its share not yet taken in the current pass, packed as
+    /// The first panic of a member other than the caller.
+    panic: Mutex<Option<Box<dyn std::any::Any + Send>>>,
+    /// Per member, the parts of its share not yet taken in the current pass, packed as
     /// (front, back) ([`Team::parts`]); each on its own cache line.
     shares: Vec<PaddedAtomic>,
 }
@@ -201,24 +323,65 @@ impl std::ops::Deref for PaddedAtomic {
 }
 
 impl Region {
-    fn new(count: usize) -> Self {
+    /// A region of at most `most` members, its door open.
+    fn new(most: usize) -> Self {
         Self {
+            door: AtomicUsize::new(0),
+            finished: AtomicUsize::new(0),
             arrived: AtomicUsize::new(0),
             generation: AtomicUsize::new(0),
-            count,
             poisoned: AtomicBool::new(false),
-            shares: (0..count)
-                .map(|_| PaddedAtomic(AtomicU64::new(0)))
-                .collect(),
+            panic: Mutex::new(None),
+            shares: (0..most).map(|_| PaddedAtomic(AtomicU64::new(0))).collect(),
+        }
+    }
+
+    /// Workers that joined the caller so far.
+    fn joined(&self) -> usize {
+        self.door.load(Ordering::Acquire) & !CLOSED
+    }
+
+    /// Join as the next member, if the door is open and there is room: the member's index.
+    fn join(&self) -> Option<usize> {
+        let most = self.shares.len();
+        self.door
+            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |d| {
+                (d & CLOSED == 0 && d + 1 < most).then_some(d + 1)
+            })
+            .ok()
+            .map(|before| before + 1)
+    }
+
+    /// Fix the members: no worker joins after this.
+    fn close(&self) {
+        self.door.fetch_or(CLOSED, Ordering::AcqRel);
+    }
+
+    /// Members, once the door has closed.
+    fn count(&self) -> usize {
+        self.joined() + 1
+    }
+
+    /// Wait until every member other than the caller has finished.
+    fn wait_for_members(&self) {
+        let mut spins = 0u32;
+        while self.finished.load(Ordering::Acquire) < self.joined() {
+            if spins < SPINS_BEFORE_YIELD {
+                spins += 1;
+                std::hint::spin_loop();
+            } else {
+                std::thread::yield_now();
+            }
         }
     }
 
     fn wait(&self) {
-        if self.count == 1 {
+        let count = self.count();
+        if count == 1 {
             return;
         }
         let generation = self.generation.load(Ordering::Acquire);
-        if self.arrived.fetch_add(1, Ordering::AcqRel) + 1 == self.count {
+        if self.arrived.fetch_add(1, Ordering::AcqRel) + 1 == count {
             // The last to arrive opens the barrier. The reset is ordered before the new
             // generation, which the others acquire before they can arrive again.
             self.arrived.store(0, Ordering::Relaxed);
@@ -233,14 +396,9 @@ impl Region {
             if spins < SPINS_BEFORE_YIELD {
                 spins += 1;
                 std::hint::spin_loop();
-            } else if rayon::yield_local() != Some(rayon::Yield::Executed) {
-                // Only this worker's own queue and the broadcasts addressed to it (another
-                // region's share, so that a region started by the worker we wait for does
-                // not wait on us). Not other work of the pool: a job taken here that forks
-                // can end up waiting for its half on the worker we wait for, while that
-                // worker, inside the half, has joined this region and waits for us (seen
-                // as a hang of the test suite, two tests stepping on the global pool).
-                // Nothing to run: give the core away.
+            } else {
+                // Nothing else is run here: a task taken at a barrier could wait on work
+                // that waits on this region. Give the core to the member we wait for.
                 std::thread::yield_now();
             }
         }
@@ -309,6 +467,12 @@ mod tests {
     use super::*;
     use crate::parallel::test_pool as pool;
 
+    /// [`run`] with every worker of the pool a member: a window long enough for any idle
+    /// worker of a test machine to join.
+    fn run_all<R: Send>(body: impl Fn(&Team) -> R + Sync) -> Vec<R> {
+        run_joined_within(Duration::from_secs(10), body)
+    }
+
     /// Every worker reads the whole array each round, after all wrote their parts: a
     /// missing barrier, or shares that overlap or leave gaps, give another sum.
     #[test]
@@ -318,7 +482,7 @@ mod tests {
             let mut values = vec![1u64; n];
             let shared = Shared::new(&mut values);
             let sums = pool(threads).install(|| {
-                run(|team| {
+                run_all(|team| {
                     let mine = team.share(n, |k| k as u64);
                     let mut seen = Vec::new();
                     for _ in 0..50 {
@@ -351,7 +515,7 @@ mod tests {
         let passes = 30;
         let taken: Vec<AtomicU32> = (0..parts).map(|_| AtomicU32::new(0)).collect();
         let per_worker = pool(2).install(|| {
-            run(|team| {
+            run_all(|team| {
                 let share = team.share(parts, |k| k as u64);
                 let mut count = 0;
                 for _ in 0..passes {
@@ -376,6 +540,7 @@ mod tests {
     #[test]
     fn shares_follow_the_cost_and_cover_the_items() {
         let region = Region::new(3);
+        region.door.store(CLOSED | 2, Ordering::Release);
         // Items 0..10 cost 1 each, items 10..20 cost 9 each: 100 in all.
         let cost = |k: usize| (k.min(10) + 9 * k.saturating_sub(10)) as u64;
         let shares: Vec<_> = (0..3)
@@ -398,13 +563,12 @@ mod tests {
     }
 
     /// A region started inside another (as a second simulation stepped from within a
-    /// parallel job would): worker 1 waits at the outer barrier while the inner region
-    /// needs it. A barrier that only spins and sleeps would wait for ever; one that runs
-    /// the pool's pending work while it waits lets the inner region finish.
+    /// parallel job would): worker 1 waits at the outer barrier and cannot join the inner
+    /// region, which closes its door without it and runs on worker 0 alone.
     #[test]
     fn a_region_inside_a_region_finishes() {
         let inner_workers = pool(2).install(|| {
-            run(|team| {
+            run_all(|team| {
                 let inner = if team.index() == 0 {
                     run(|inner| {
                         inner.wait();
@@ -418,14 +582,50 @@ mod tests {
                 inner
             })
         });
-        assert_eq!(inner_workers, vec![2, 0]);
+        assert_eq!(inner_workers, vec![1, 0]);
+    }
+
+    /// A worker blocked in another task (until the regions are done) does not hold them
+    /// up: each runs with the members that came, and any one member finishes it alone.
+    #[test]
+    fn a_worker_blocked_elsewhere_does_not_hold_up_a_region() {
+        let pool = pool(3);
+        let done = AtomicBool::new(false);
+        let counts = pool.in_place_scope(|s| {
+            s.spawn(|_| {
+                while !done.load(Ordering::Acquire) {
+                    std::thread::yield_now();
+                }
+            });
+            let counts: Vec<usize> = pool.install(|| {
+                (0..200)
+                    .map(|_| {
+                        let sums = run(|team| {
+                            let mut sum = 0u64;
+                            for pass in 0..5u64 {
+                                for p in team.parts(team.share(64, |k| k as u64)) {
+                                    sum += p as u64 * pass;
+                                }
+                                team.wait();
+                            }
+                            sum
+                        });
+                        assert_eq!(sums.iter().sum::<u64>(), (0..64).sum::<u64>() * 10);
+                        sums.len()
+                    })
+                    .collect()
+            });
+            done.store(true, Ordering::Release);
+            counts
+        });
+        assert!(counts.iter().all(|&c| (1..=2).contains(&c)), "{counts:?}");
     }
 
     #[test]
     fn a_panicking_worker_reaches_the_caller_instead_of_hanging_the_others() {
         let result = std::panic::catch_unwind(|| {
             pool(2).install(|| {
-                run(|team| {
+                run_all(|team| {
                     if team.index() == 1 {
                         panic!("worker 1 fails");
                     }

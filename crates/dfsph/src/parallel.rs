@@ -12,7 +12,7 @@
 
 use std::cell::Cell;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::Mutex;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Fewest items a task of a light pass (a few arithmetic operations, or one copy, per
@@ -53,13 +53,9 @@ static IN_FLIGHT: AtomicUsize = AtomicUsize::new(0);
 
 /// Counts a step (or a lockstep region started from outside a pool) as in progress until
 /// the returned guard drops, and says whether nothing else was then in progress. Only a
-/// step alone may run [`with_workers_at_hand`]: that
-/// call's work reaches its worker as a broadcast, which a worker also runs while it waits
-/// at a lockstep barrier (`rayon::yield_local`). Run there, inside another step's region,
-/// the work's forked passes can end up waiting on the other worker while it waits at that
-/// barrier for this one (a hang seen in the test suite, where tests step simulations on
-/// the global pool at once). Steps that overlap run as plain pool jobs, which a barrier
-/// does not pick up.
+/// step alone runs [`with_workers_at_hand`]; steps that overlap (tests stepping simulations
+/// on one pool at once) run as plain pool jobs, so that no worker stands by, polling, for
+/// one step while another step's region could use it as a member.
 pub fn alone_in_flight() -> (InFlight, bool) {
     let before = IN_FLIGHT.fetch_add(1, Ordering::AcqRel);
     (InFlight, before == 0)
@@ -88,19 +84,15 @@ pub fn with_workers_at_hand<R: Send>(work: impl FnOnce() -> R + Send) -> R {
     if rayon::current_thread_index().is_some() || rayon::current_num_threads() == 1 {
         return work();
     }
-    run_at_hand(
-        |op| drop(rayon::broadcast(op)),
-        work,
-        JOIN_WINDOW,
-        &AtomicUsize::new(0),
-    )
+    run_at_hand(None, work, JOIN_WINDOW, Arc::default())
 }
 
-/// [`with_workers_at_hand`] on the pool of `broadcast` (which runs its argument once on
-/// every worker of a pool, called from outside it), counting the workers standing by in
-/// `standing_by`.
+/// [`with_workers_at_hand`] on `pool` (the global pool where `None`), called from outside
+/// it, counting the workers standing by in `standing_by`.
 ///
-/// A worker stands by only if it joins before `work` starts: worker 0 waits up to
+/// The other workers are invited with `spawn_broadcast`, which does not wait for them, and
+/// `work` runs as one pool task: a worker blocked elsewhere holds nothing up. A worker
+/// stands by only if it joins before `work` starts: the worker running `work` waits up to
 /// `join_window` for the others, then closes the door and starts. (A worker that joined
 /// later might be inside a task of `work` it had taken meanwhile, and standing by there
 /// would hold that task's result until `work` ended, while `work` waits for it.) A worker
@@ -109,54 +101,72 @@ pub fn with_workers_at_hand<R: Send>(work: impl FnOnce() -> R + Send) -> R {
 /// for another call does not stand by again, so two calls from different threads cannot
 /// hold each other's workers.
 fn run_at_hand<R: Send>(
-    broadcast: impl FnOnce(&(dyn Fn(rayon::BroadcastContext<'_>) + Sync)),
+    pool: Option<&rayon::ThreadPool>,
     work: impl FnOnce() -> R + Send,
     join_window: Duration,
-    standing_by: &AtomicUsize,
+    standing_by: Arc<AtomicUsize>,
 ) -> R {
-    /// Set in `door` once worker 0 has started the work; the bits below count the workers
-    /// that joined before.
-    const CLOSED: usize = 1 << (usize::BITS - 1);
-    let work = Mutex::new(Some(work));
-    let out = Mutex::new(None);
-    let door = AtomicUsize::new(0);
-    let done = AtomicBool::new(false);
-    broadcast(&|ctx| {
-        if ctx.index() == 0 {
-            let others = ctx.num_threads() - 1;
-            let opened = Instant::now();
-            while door.load(Ordering::Acquire) < others && opened.elapsed() < join_window {
-                std::hint::spin_loop();
-            }
-            door.fetch_or(CLOSED, Ordering::AcqRel);
-            // Ends the standing by also when `work` panics (the broadcast then passes the
-            // panic on once every worker has returned).
-            let _end = EndOnDrop {
-                done: &done,
-                was_busy: AT_HAND_BUSY.replace(true),
-            };
-            let work = work
-                .lock()
-                .unwrap()
-                .take()
-                .expect("worker 0 runs the work once");
-            *out.lock().unwrap() = Some(work());
-        } else if !AT_HAND_BUSY.replace(true) {
-            let joined = door
-                .fetch_update(Ordering::AcqRel, Ordering::Acquire, |d| {
-                    (d & CLOSED == 0).then_some(d + 1)
-                })
-                .is_ok();
-            if joined {
-                standing_by.fetch_add(1, Ordering::AcqRel);
-                wait_until(|| done.load(Ordering::Acquire));
-                standing_by.fetch_sub(1, Ordering::AcqRel);
-            }
-            AT_HAND_BUSY.set(false);
-        }
+    let call = Arc::new(AtHand {
+        door: AtomicUsize::new(0),
+        done: AtomicBool::new(false),
+        standing_by,
     });
-    let out = out.into_inner().unwrap();
-    out.expect("worker 0 ran the work")
+    let run = || {
+        // Ends the standing by also when `work` panics (the panic then reaches the caller).
+        // Set before the invitations go out, so that this worker's own is turned down.
+        let _end = EndOnDrop {
+            done: &call.done,
+            was_busy: AT_HAND_BUSY.replace(true),
+        };
+        // On a worker now: this goes to the pool's workers.
+        let invitation = Arc::clone(&call);
+        rayon::spawn_broadcast(move |_| invitation.stand_by());
+        let others = rayon::current_num_threads() - 1;
+        let opened = Instant::now();
+        while call.door.load(Ordering::Acquire) < others && opened.elapsed() < join_window {
+            std::hint::spin_loop();
+        }
+        call.door.fetch_or(CLOSED, Ordering::AcqRel);
+        work()
+    };
+    match pool {
+        Some(pool) => pool.install(run),
+        None => rayon::scope(|_| run()),
+    }
+}
+
+/// Set in [`AtHand::door`] once the work has started; the bits below count the workers that
+/// joined before.
+const CLOSED: usize = 1 << (usize::BITS - 1);
+
+/// One [`run_at_hand`] call, as its invitations see it.
+struct AtHand {
+    door: AtomicUsize,
+    /// Set when the work has returned (or unwound).
+    done: AtomicBool,
+    standing_by: Arc<AtomicUsize>,
+}
+
+impl AtHand {
+    /// An invitation: stand by until the work is done, if the door is still open and this
+    /// worker is not already running or standing by for such work.
+    fn stand_by(&self) {
+        if AT_HAND_BUSY.replace(true) {
+            return;
+        }
+        let joined = self
+            .door
+            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |d| {
+                (d & CLOSED == 0).then_some(d + 1)
+            })
+            .is_ok();
+        if joined {
+            self.standing_by.fetch_add(1, Ordering::AcqRel);
+            wait_until(|| self.done.load(Ordering::Acquire));
+            self.standing_by.fetch_sub(1, Ordering::AcqRel);
+        }
+        AT_HAND_BUSY.set(false);
+    }
 }
 
 /// Poll the pool for tasks, running them, until `ready()`.
@@ -209,11 +219,11 @@ mod tests {
     /// With a join window long enough for every idle worker of a test machine to join.
     fn at_hand_on<R: Send>(
         pool: &rayon::ThreadPool,
-        standing_by: &AtomicUsize,
+        standing_by: &Arc<AtomicUsize>,
         work: impl FnOnce() -> R + Send,
     ) -> R {
         let window = Duration::from_secs(10);
-        run_at_hand(|op| drop(pool.broadcast(op)), work, window, standing_by)
+        run_at_hand(Some(pool), work, window, Arc::clone(standing_by))
     }
 
     /// Within `work`: wait (up to 10 s) until `count` workers stand by, and return how many
@@ -230,7 +240,7 @@ mod tests {
 
     #[test]
     fn the_work_runs_its_passes_and_returns_their_result() {
-        let sum = at_hand_on(&pool(2), &AtomicUsize::new(0), || {
+        let sum = at_hand_on(&pool(2), &Arc::default(), || {
             (0..50u64)
                 .map(|pass| {
                     (0..10_000u32)
@@ -246,9 +256,13 @@ mod tests {
 
     #[test]
     fn the_other_workers_stand_by_while_the_work_runs() {
-        let standing_by = AtomicUsize::new(0);
+        let standing_by = Arc::new(AtomicUsize::new(0));
         let most = at_hand_on(&pool(3), &standing_by, || most_standing_by(&standing_by, 2));
         assert_eq!(most, 2, "both other workers of a 3-worker pool stand by");
+        let ended = Instant::now();
+        while standing_by.load(Ordering::Acquire) > 0 && ended.elapsed().as_secs() < 10 {
+            std::thread::yield_now();
+        }
         assert_eq!(
             standing_by.load(Ordering::Acquire),
             0,
@@ -270,9 +284,9 @@ mod tests {
                     }
                 }
             });
-            let standing_by = AtomicUsize::new(0);
+            let standing_by = Arc::new(AtomicUsize::new(0));
             let most = run_at_hand(
-                |op| drop(pool.broadcast(op)),
+                Some(&pool),
                 || {
                     release.store(true, Ordering::Release);
                     let start = Instant::now();
@@ -283,7 +297,7 @@ mod tests {
                     most
                 },
                 Duration::from_millis(1),
-                &standing_by,
+                Arc::clone(&standing_by),
             );
             assert_eq!(most, 0);
         });
@@ -302,7 +316,7 @@ mod tests {
                             // Each call's worker 0 may wait for a worker standing by
                             // for the other call: the window bounds that wait.
                             total += run_at_hand(
-                                |op| drop(pool.broadcast(op)),
+                                Some(pool),
                                 || {
                                     (0..5_000u32)
                                         .into_par_iter()
@@ -311,7 +325,7 @@ mod tests {
                                         .sum::<u64>()
                                 },
                                 JOIN_WINDOW,
-                                &AtomicUsize::new(0),
+                                Arc::default(),
                             );
                         }
                         total
@@ -328,11 +342,11 @@ mod tests {
     fn a_panic_in_the_work_ends_the_standing_by_and_reaches_the_caller() {
         let pool = pool(2);
         let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            at_hand_on(&pool, &AtomicUsize::new(0), || panic!("in the work"))
+            at_hand_on(&pool, &Arc::default(), || panic!("in the work"))
         }));
         assert!(caught.is_err());
         // Both workers are free again, and the one whose work panicked runs the next.
-        let standing_by = AtomicUsize::new(0);
+        let standing_by = Arc::new(AtomicUsize::new(0));
         let most = at_hand_on(&pool, &standing_by, || most_standing_by(&standing_by, 1));
         assert_eq!(most, 1);
     }
@@ -344,6 +358,43 @@ mod tests {
         let (_first, _) = alone_in_flight();
         let (_second, alone) = alone_in_flight();
         assert!(!alone);
+    }
+
+    /// A worker blocked in another task (until the work is done) holds nothing up: the work
+    /// runs on another worker, and the blocked one stands by for none of it.
+    #[test]
+    fn a_worker_blocked_elsewhere_does_not_hold_up_the_work() {
+        let pool = pool(2);
+        let (blocked, done) = (AtomicBool::new(false), AtomicBool::new(false));
+        pool.in_place_scope(|s| {
+            s.spawn(|_| {
+                blocked.store(true, Ordering::Release);
+                while !done.load(Ordering::Acquire) {
+                    std::thread::yield_now();
+                }
+            });
+            while !blocked.load(Ordering::Acquire) {
+                std::hint::spin_loop();
+            }
+            for _ in 0..100 {
+                let standing_by = Arc::new(AtomicUsize::new(0));
+                let window = Duration::from_micros(50);
+                let sum = run_at_hand(
+                    Some(&pool),
+                    || {
+                        (0..10_000u32)
+                            .into_par_iter()
+                            .with_min_len(64)
+                            .map(u64::from)
+                            .sum::<u64>()
+                    },
+                    window,
+                    Arc::clone(&standing_by),
+                );
+                assert_eq!(sum, (0..10_000u64).sum::<u64>());
+            }
+            done.store(true, Ordering::Release);
+        });
     }
 
     #[test]
