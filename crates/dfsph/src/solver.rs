@@ -1059,8 +1059,8 @@ mod tests {
 
     #[test]
     fn simd_and_portable_linearisation_checks_agree_bit_for_bit() {
-        // The advected kernel sums repeat the scalar expressions operation by operation.
-        // (Without AVX-512 both runs take the portable path.)
+        // The advected kernel sums repeat the scalar expressions operation by operation on
+        // every path: here the path in use (AVX-512 or `fma`) against `portable`.
         let p = patch();
         let mut portable = p.cache.clone();
         portable.blocks.set_simd_path(SimdPath::Portable);
@@ -1087,8 +1087,8 @@ mod tests {
 
     #[test]
     fn simd_and_portable_density_passes_agree_bit_for_bit() {
-        // The AVX-512 pair loop evaluates the kernel with the scalar code's operations in the
-        // scalar code's order. (Without AVX-512 both runs take the portable path.)
+        // Every path evaluates the kernel with the scalar code's operations in the scalar
+        // code's order: here the path in use (AVX-512 or `fma`) against `portable`.
         let p = patch();
         let mut fluid = p.fluid.clone();
         let mut portable = PairCache::default();
