@@ -210,10 +210,18 @@ fn run_joined_within<R: Send>(window: Duration, body: impl Fn(&Team) -> R + Sync
         region: Arc::clone(&region),
         member: MemberPtr(member as *const _),
     };
-    rayon::spawn_broadcast(move |_| invitation.accept());
+    // A worker that stays blocked keeps the invitations sent to it; past a bound, regions
+    // run on their caller alone rather than pile up more.
+    let invited = crate::parallel::invitations::send(workers);
+    if invited {
+        rayon::spawn_broadcast(move |_| {
+            crate::parallel::invitations::taken();
+            invitation.accept();
+        });
+    }
 
     let opened = Instant::now();
-    while region.joined() < most - 1 && opened.elapsed() < window {
+    while invited && region.joined() < most - 1 && opened.elapsed() < window {
         std::hint::spin_loop();
     }
     region.close();
@@ -619,6 +627,31 @@ mod tests {
             counts
         });
         assert!(counts.iter().all(|&c| (1..=2).contains(&c)), "{counts:?}");
+    }
+
+    /// A worker blocked for good keeps every invitation sent to it: they stop at a bound, and
+    /// the regions go on without inviting.
+    #[test]
+    fn invitations_to_a_blocked_worker_stop_at_a_bound() {
+        use crate::parallel::invitations::{pending, MAX_PENDING};
+        let pool = pool(2);
+        let done = AtomicBool::new(false);
+        pool.in_place_scope(|s| {
+            s.spawn(|_| {
+                while !done.load(Ordering::Acquire) {
+                    std::thread::yield_now();
+                }
+            });
+            let members: Vec<usize> = pool.install(|| {
+                (0..MAX_PENDING + 500)
+                    .map(|_| run(|team| team.count()).len())
+                    .collect()
+            });
+            // Other tests' invitations may be in flight too, briefly.
+            assert!(pending() <= MAX_PENDING + 64, "{} pending", pending());
+            assert!(members.iter().all(|&m| m == 1), "{members:?}");
+            done.store(true, Ordering::Release);
+        });
     }
 
     #[test]

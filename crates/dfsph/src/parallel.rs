@@ -120,10 +120,19 @@ fn run_at_hand<R: Send>(
         };
         // On a worker now: this goes to the pool's workers.
         let invitation = Arc::clone(&call);
-        rayon::spawn_broadcast(move |_| invitation.stand_by());
+        let invited = invitations::send(rayon::current_num_threads());
+        if invited {
+            rayon::spawn_broadcast(move |_| {
+                invitations::taken();
+                invitation.stand_by();
+            });
+        }
         let others = rayon::current_num_threads() - 1;
         let opened = Instant::now();
-        while call.door.load(Ordering::Acquire) < others && opened.elapsed() < join_window {
+        while invited
+            && call.door.load(Ordering::Acquire) < others
+            && opened.elapsed() < join_window
+        {
             std::hint::spin_loop();
         }
         call.door.fetch_or(CLOSED, Ordering::AcqRel);
@@ -166,6 +175,40 @@ impl AtHand {
             self.standing_by.fetch_sub(1, Ordering::AcqRel);
         }
         AT_HAND_BUSY.set(false);
+    }
+}
+
+/// Invitations sent to the pool's workers (lockstep regions, standing by) that no worker has
+/// taken yet. A worker blocked in an application's task keeps those sent to it in its queue
+/// until it is free; past [`MAX_PENDING`] (a few hundred kilobytes), no more are sent, and
+/// regions run on their caller alone until the queues drain.
+pub(crate) mod invitations {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    /// The most invitations left untaken before no more are sent.
+    pub const MAX_PENDING: usize = 1024;
+
+    static PENDING: AtomicUsize = AtomicUsize::new(0);
+
+    /// Account for an invitation to each of `workers` workers, if the bound allows: whether
+    /// to send them.
+    pub fn send(workers: usize) -> bool {
+        if PENDING.load(Ordering::Relaxed) >= MAX_PENDING {
+            return false;
+        }
+        PENDING.fetch_add(workers, Ordering::Relaxed);
+        true
+    }
+
+    /// One invitation was taken (accepted or turned down).
+    pub fn taken() {
+        PENDING.fetch_sub(1, Ordering::Relaxed);
+    }
+
+    /// Invitations not yet taken.
+    #[cfg(test)]
+    pub fn pending() -> usize {
+        PENDING.load(Ordering::Relaxed)
     }
 }
 
