@@ -484,7 +484,7 @@ impl BlockedPairs {
     /// writes the relative density rates `r_i` of the block's particles into `rate` and
     /// their `Δκ_i` into `delta` (one entry per particle of the block in each), and their
     /// residuals `e_i` into `errors`, lane by lane (0 in the lanes past the last particle;
-    /// [`crate::reduce::fold_block_sums`] sums them).
+    /// `reduce::fold_block_sums` sums them).
     #[inline]
     pub fn residual_block(
         &self,

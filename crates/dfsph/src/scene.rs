@@ -110,7 +110,7 @@ pub enum PressureSolve {
     Jacobi,
     /// Preconditioned conjugate gradients with the full previous pressure as the starting
     /// guess, a stopping rule that sees momentum, walls that mirror the fluid's pressure with
-    /// its hydrostatic gradient, and a hydrostatic initial pressure ([`crate::density_cg`]).
+    /// its hydrostatic gradient, and a hydrostatic initial pressure (`density_cg`).
     /// Water at rest stays at rest.
     ConjugateGradient,
 }

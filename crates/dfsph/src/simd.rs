@@ -4,7 +4,7 @@
 //!   neighbour search's candidate filter), on x86-64 CPUs that have AVX-512F.
 //! - [`SimdPath::Fma`]: the lane kernels, written once over 16 `f32` lanes (`[f32; 16]`, one
 //!   slot of a block), compiled with AVX2 and fused multiply-add enabled on x86-64 CPUs that
-//!   have both ([`with_fma`]), and for NEON on aarch64. The compiler turns each slot's
+//!   have both (`with_fma`), and for NEON on aarch64. The compiler turns each slot's
 //!   arithmetic into vector instructions. The pressure solve's multiply-adds are fused, as in
 //!   the AVX-512 kernels, and every other operation is the same in both and in the same
 //!   order, so the two paths are meant to give the same bits.

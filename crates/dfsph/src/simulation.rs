@@ -362,9 +362,9 @@ impl Simulation {
     /// wake per pass, which on a 2-core virtual machine took half the wall time of a
     /// 5,000-particle dam break. When steps follow each other closely (a batch run, the
     /// viewer's steps within a frame), the pool's other workers stand by for the whole step
-    /// ([`parallel::with_workers_at_hand`]) rather than falling asleep between passes, unless
+    /// (`parallel::with_workers_at_hand`) rather than falling asleep between passes, unless
     /// another step (of another simulation, on another thread) is in progress meanwhile
-    /// ([`parallel::alone_in_flight`]).
+    /// (`parallel::alone_in_flight`).
     pub fn step(&mut self) -> &StepStats {
         let back_to_back = self
             .last_step_end
@@ -958,7 +958,7 @@ impl Simulation {
 
     /// What the pressure force of the stored pressures is scaled by: the lattice's gradient
     /// consistency c for the conjugate-gradient solve, which stores the physical pressure
-    /// c·κ/Δt (see [`crate::density_cg::density_solve`]); 1 for the Jacobi solve and WCSPH.
+    /// c·κ/Δt (see `density_cg::density_solve`); 1 for the Jacobi solve and WCSPH.
     pub fn pressure_force_scale(&self) -> f32 {
         if self.conjugate_gradient() {
             1.0 / self.gradient_consistency
