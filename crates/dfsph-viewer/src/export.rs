@@ -1,7 +1,5 @@
 //! Files the viewer writes: particle CSV, PNG screenshots, and the session record.
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 
@@ -9,21 +7,10 @@ use anyhow::Context as _;
 use dfsph::Snapshot;
 use eframe::egui::ColorImage;
 
-/// Write `x,y,vx,vy,density,pressure` (m, m/s, kg/m³, Pa), one row per particle in id order.
+/// Write `x,y,vx,vy,density,pressure` (m, m/s, kg/m³, Pa), one row per particle in id order:
+/// the CSV of `dfsph2d run` ([`dfsph_io::csv::write_snapshot_csv`]), written atomically.
 pub fn write_particles_csv(path: &Path, snap: &Snapshot) -> anyhow::Result<()> {
-    let file = File::create(path).with_context(|| format!("creating {}", path.display()))?;
-    let mut w = BufWriter::new(file);
-    writeln!(w, "x,y,vx,vy,density,pressure")?;
-    for i in 0..snap.position.len() {
-        let (p, v) = (snap.position[i], snap.velocity[i]);
-        writeln!(
-            w,
-            "{},{},{},{},{},{}",
-            p.x, p.y, v.x, v.y, snap.density[i], snap.pressure[i]
-        )?;
-    }
-    w.flush()
-        .with_context(|| format!("writing {}", path.display()))
+    dfsph_io::csv::write_snapshot_csv(path, snap)
 }
 
 /// Save a screenshot as an RGBA PNG.

@@ -141,7 +141,10 @@ impl Coloring {
         match self {
             Coloring::Speed => ramp(WATER, t),
             Coloring::Density => ramp(COOLWARM, t),
-            Coloring::Pressure => ramp(VIRIDIS, t),
+            Coloring::Pressure => {
+                let [r, g, b] = dfsph_io::colormap::viridis(t);
+                Color32::from_rgb(r, g, b)
+            }
         }
     }
 
@@ -180,14 +183,6 @@ const WATER: &[[u8; 3]] = &[
 ];
 /// Blue (expanded) → white (at rest density) → red (compressed).
 const COOLWARM: &[[u8; 3]] = &[[59, 76, 192], [221, 221, 221], [180, 4, 38]];
-/// Matplotlib's viridis at five stops.
-const VIRIDIS: &[[u8; 3]] = &[
-    [68, 1, 84],
-    [59, 82, 139],
-    [33, 145, 140],
-    [94, 201, 98],
-    [253, 231, 37],
-];
 
 /// Piecewise-linear colour ramp through `stops` at `t` in 0–1 (clamped; NaN maps to 0).
 fn ramp(stops: &[[u8; 3]], t: f32) -> Color32 {
@@ -323,10 +318,19 @@ mod tests {
     fn colorings_cycle_and_ramps_clamp() {
         assert_eq!(Coloring::Speed.next(), Coloring::Density);
         assert_eq!(Coloring::Pressure.next(), Coloring::Speed);
-        assert_eq!(ramp(VIRIDIS, -1.0), Color32::from_rgb(68, 1, 84));
-        assert_eq!(ramp(VIRIDIS, 2.0), Color32::from_rgb(253, 231, 37));
-        assert_eq!(ramp(VIRIDIS, f32::NAN), ramp(VIRIDIS, 0.0));
+        assert_eq!(ramp(WATER, -1.0), Color32::from_rgb(16, 52, 138));
+        assert_eq!(ramp(WATER, 2.0), Color32::WHITE);
+        assert_eq!(ramp(WATER, f32::NAN), ramp(WATER, 0.0));
         assert_eq!(ramp(COOLWARM, 0.5), Color32::from_rgb(221, 221, 221));
+        // Pressure uses the colour map of the PNG frames (dfsph-io's viridis).
+        assert_eq!(
+            Coloring::Pressure.color(0.0),
+            Color32::from_rgb(0x44, 0x01, 0x54)
+        );
+        assert_eq!(
+            Coloring::Pressure.color(1.0),
+            Color32::from_rgb(0xfd, 0xe7, 0x25)
+        );
     }
 
     #[test]
