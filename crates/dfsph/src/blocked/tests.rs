@@ -615,3 +615,50 @@ fn a_short_value_array_is_refused() {
     blocks.build(&lists, &grads);
     blocks.weighted_gradient_sums(0, &[0.0; 39]);
 }
+
+/// The `fma` lane kernels and the AVX-512 kernels do the same operations in the same order
+/// (the pressure sums' multiply-adds fused in both), so they give the same bits. Only a CPU
+/// with AVX-512F runs both.
+#[test]
+fn the_fma_path_gives_the_avx512_bits() {
+    if !SimdPath::Avx512.available() {
+        return;
+    }
+    for (lists, grads) in [
+        random_lists(333),
+        sorted_random_lists(333),
+        lattice_lists(1000, 40, None),
+    ] {
+        let run = |path| all_kernel_bits(&lists, &grads, |b| b.set_simd_path(path));
+        assert!(run(SimdPath::Fma) == run(SimdPath::Avx512));
+    }
+}
+
+/// The `fma` path fuses the pressure sums' multiply-adds and `portable` does not: the two
+/// differ in the last bits of some sums, and only there (the other passes are tested
+/// bit-identical above).
+#[test]
+fn the_fma_path_fuses_the_pressure_sums() {
+    if !SimdPath::Fma.available() {
+        return;
+    }
+    let (lists, grads) = sorted_random_lists(333);
+    let s: Vec<f32> = (0..333).map(|k| unit(k as u64 + 7) - 0.4).collect();
+    let sums = |path| {
+        let mut blocks = BlockedPairs::default();
+        blocks.set_simd_path(path);
+        blocks.build(&lists, &grads);
+        (0..blocks.blocks())
+            .flat_map(|b| {
+                let (x, y) = blocks.weighted_gradient_sums(b, &s);
+                x.into_iter().chain(y)
+            })
+            .collect::<Vec<f32>>()
+    };
+    let (fused, apart) = (sums(SimdPath::Fma), sums(SimdPath::Portable));
+    let differ = fused.iter().zip(&apart).filter(|(a, b)| a != b).count();
+    assert!(differ > 0, "no sum rounds differently");
+    for (a, b) in fused.iter().zip(&apart) {
+        assert!((a - b).abs() <= 1e-5 * a.abs().max(1.0), "{a} against {b}");
+    }
+}
