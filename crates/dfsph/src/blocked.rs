@@ -64,7 +64,7 @@ pub struct BlockedPairs {
     /// in three ([`Gather::Windows`]); empty unless that way of reading is in use.
     window_start: Vec<Option<[u32; 3]>>,
     /// Per entry, the code that picks its neighbour out of its block's windows
-    /// ([`window_codes`]); empty unless [`Gather::Windows`] is in use.
+    /// ([`avx512::window_codes`]); empty unless [`Gather::Windows`] is in use.
     window_code: Vec<u8>,
     /// The path the pair loops take ([`SimdPath`]), set by [`Self::prepare`].
     path: SimdPath,

@@ -180,8 +180,8 @@ impl AtHand {
 
 /// Invitations sent to the pool's workers (lockstep regions, standing by) that no worker has
 /// taken yet. A worker blocked in an application's task keeps those sent to it in its queue
-/// until it is free; past [`MAX_PENDING`] (a few hundred kilobytes), no more are sent, and
-/// regions run on their caller alone until the queues drain.
+/// until it is free; past [`invitations::MAX_PENDING`] (a few hundred kilobytes), no more are
+/// sent, and regions run on their caller alone until the queues drain.
 pub(crate) mod invitations {
     use std::sync::atomic::{AtomicUsize, Ordering};
 

@@ -13,10 +13,10 @@ use super::{BlockedPairs, FluidSums, ResidualTerms, SlotIndex, LANES};
 use crate::kernel::CubicSpline;
 use crate::simd::mul_add;
 
-/// [`BlockWriter::fill_block`]'s pair loop on the lane path, slot by slot: each lane's
+/// [`super::BlockWriter::fill_block`]'s pair loop on the lane path, slot by slot: each lane's
 /// neighbour position, `∇W` (written to `gx`, `gy`; zero past the lane's list) and the
 /// density sums, in list order with [`CubicSpline::w_and_grad`]'s operations, so every path
-/// gives the same bits. `FUSED` only selects how the code is compiled ([`lane_kernel`]).
+/// gives the same bits. `FUSED` only selects how the code is compiled ([`crate::simd::lane_kernel`]).
 ///
 /// # Safety
 /// `idx`, `gx` and `gy` must hold `width` whole slots, and every index be below `pos.len()`.
