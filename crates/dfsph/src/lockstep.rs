@@ -20,6 +20,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use crate::parallel::{Invitations, INVITATIONS};
+
 /// Busy-wait rounds at a barrier before the waiting worker starts yielding (about 30–60 µs
 /// of `pause`): a pass's shares end within microseconds of each other, but a worker
 /// descheduled by the host, or sharing its core with another thread, may be late by a whole
@@ -170,11 +172,16 @@ const JOIN_WINDOW: Duration = Duration::from_micros(200);
 /// If one member panics, the others panic at their next [`Team::wait`] rather than wait
 /// for it forever, and the first panic reaches the caller once every member has stopped.
 pub fn run<R: Send>(body: impl Fn(&Team) -> R + Sync) -> Vec<R> {
-    run_joined_within(JOIN_WINDOW, body)
+    run_joined_within(JOIN_WINDOW, &INVITATIONS, body)
 }
 
-/// [`run`], with the workers given `window` to join (the wait ends as soon as all have).
-fn run_joined_within<R: Send>(window: Duration, body: impl Fn(&Team) -> R + Sync) -> Vec<R> {
+/// [`run`], with the workers given `window` to join (the wait ends as soon as all have), and
+/// the untaken invitations counted in `invitations`.
+fn run_joined_within<R: Send>(
+    window: Duration,
+    invitations: &'static Invitations,
+    body: impl Fn(&Team) -> R + Sync,
+) -> Vec<R> {
     let workers = rayon::current_num_threads();
     let outside = rayon::current_thread_index().is_none();
     // At most every worker, plus the caller where it is not one of them.
@@ -213,10 +220,10 @@ fn run_joined_within<R: Send>(window: Duration, body: impl Fn(&Team) -> R + Sync
     };
     // A worker that stays blocked keeps the invitations sent to it; past a bound, regions
     // run on their caller alone rather than pile up more.
-    let invited = crate::parallel::invitations::send(workers);
+    let invited = invitations.send(workers);
     if invited {
         rayon::spawn_broadcast(move |_| {
-            crate::parallel::invitations::taken();
+            invitations.taken();
             invitation.accept();
         });
     }
@@ -479,7 +486,7 @@ mod tests {
     /// [`run`] with every worker of the pool a member: a window long enough for any idle
     /// worker of a test machine to join.
     fn run_all<R: Send>(body: impl Fn(&Team) -> R + Sync) -> Vec<R> {
-        run_joined_within(Duration::from_secs(10), body)
+        run_joined_within(Duration::from_secs(10), &INVITATIONS, body)
     }
 
     /// Every worker reads the whole array each round, after all wrote their parts: a
@@ -599,60 +606,76 @@ mod tests {
     #[test]
     fn a_worker_blocked_elsewhere_does_not_hold_up_a_region() {
         let pool = pool(3);
-        let done = AtomicBool::new(false);
-        let counts = pool.in_place_scope(|s| {
-            s.spawn(|_| {
-                while !done.load(Ordering::Acquire) {
-                    std::thread::yield_now();
-                }
-            });
-            let counts: Vec<usize> = pool.install(|| {
-                (0..200)
-                    .map(|_| {
-                        let sums = run(|team| {
-                            let mut sum = 0u64;
-                            for pass in 0..5u64 {
-                                for p in team.parts(team.share(64, |k| k as u64)) {
-                                    sum += p as u64 * pass;
-                                }
-                                team.wait();
+        let sums: Vec<Vec<u64>> = with_a_worker_blocked(&pool, || {
+            (0..200)
+                .map(|_| {
+                    run(|team| {
+                        let mut sum = 0u64;
+                        for pass in 0..5u64 {
+                            for p in team.parts(team.share(64, |k| k as u64)) {
+                                sum += p as u64 * pass;
                             }
-                            sum
-                        });
-                        assert_eq!(sums.iter().sum::<u64>(), (0..64).sum::<u64>() * 10);
-                        sums.len()
+                            team.wait();
+                        }
+                        sum
                     })
-                    .collect()
-            });
-            done.store(true, Ordering::Release);
-            counts
+                })
+                .collect()
         });
-        assert!(counts.iter().all(|&c| (1..=2).contains(&c)), "{counts:?}");
+        for s in sums {
+            assert!((1..=2).contains(&s.len()), "{} members", s.len());
+            assert_eq!(s.iter().sum::<u64>(), (0..64).sum::<u64>() * 10);
+        }
     }
 
     /// A worker blocked for good keeps every invitation sent to it: they stop at a bound, and
     /// the regions go on without inviting.
     #[test]
     fn invitations_to_a_blocked_worker_stop_at_a_bound() {
-        use crate::parallel::invitations::{pending, MAX_PENDING};
+        // A count of its own, so that other tests running meanwhile still invite.
+        static OWN: Invitations = Invitations::new();
+        const MAX_PENDING: usize = Invitations::MAX_PENDING;
         let pool = pool(2);
-        let done = AtomicBool::new(false);
+        let (members, pending) = with_a_worker_blocked(&pool, || {
+            let members: Vec<usize> = (0..MAX_PENDING + 500)
+                .map(|_| run_joined_within(JOIN_WINDOW, &OWN, |team| team.count()).len())
+                .collect();
+            (members, OWN.pending())
+        });
+        assert!(
+            (MAX_PENDING..MAX_PENDING + 4).contains(&pending),
+            "{pending} pending"
+        );
+        assert!(members.iter().all(|&m| m == 1), "{members:?}");
+    }
+
+    /// Run `work` on a worker of `pool` while another of its workers is held in a task (from
+    /// before `work` starts until it ends, also if it panics), and return what it returned.
+    fn with_a_worker_blocked<R: Send>(
+        pool: &rayon::ThreadPool,
+        work: impl FnOnce() -> R + Send,
+    ) -> R {
+        let (held, release) = (AtomicBool::new(false), AtomicBool::new(false));
         pool.in_place_scope(|s| {
             s.spawn(|_| {
-                while !done.load(Ordering::Acquire) {
+                held.store(true, Ordering::Release);
+                while !release.load(Ordering::Acquire) {
                     std::thread::yield_now();
                 }
             });
-            let members: Vec<usize> = pool.install(|| {
-                (0..MAX_PENDING + 500)
-                    .map(|_| run(|team| team.count()).len())
-                    .collect()
-            });
-            // Other tests' invitations may be in flight too, briefly.
-            assert!(pending() <= MAX_PENDING + 64, "{} pending", pending());
-            assert!(members.iter().all(|&m| m == 1), "{members:?}");
-            done.store(true, Ordering::Release);
-        });
+            while !held.load(Ordering::Acquire) {
+                std::hint::spin_loop();
+            }
+            /// Releases the held worker when dropped, also while a panic unwinds.
+            struct Release<'a>(&'a AtomicBool);
+            impl Drop for Release<'_> {
+                fn drop(&mut self) {
+                    self.0.store(true, Ordering::Release);
+                }
+            }
+            let _release = Release(&release);
+            pool.install(work)
+        })
     }
 
     #[test]

@@ -120,10 +120,10 @@ fn run_at_hand<R: Send>(
         };
         // On a worker now: this goes to the pool's workers.
         let invitation = Arc::clone(&call);
-        let invited = invitations::send(rayon::current_num_threads());
+        let invited = INVITATIONS.send(rayon::current_num_threads());
         if invited {
             rayon::spawn_broadcast(move |_| {
-                invitations::taken();
+                INVITATIONS.taken();
                 invitation.stand_by();
             });
         }
@@ -178,37 +178,46 @@ impl AtHand {
     }
 }
 
-/// Invitations sent to the pool's workers (lockstep regions, standing by) that no worker has
+/// Invitations sent to a pool's workers (lockstep regions, standing by) that no worker has
 /// taken yet. A worker blocked in an application's task keeps those sent to it in its queue
-/// until it is free; past [`invitations::MAX_PENDING`] (a few hundred kilobytes), no more are
+/// until it is free; past [`Invitations::MAX_PENDING`] (a few hundred kilobytes), no more are
 /// sent, and regions run on their caller alone until the queues drain.
-pub(crate) mod invitations {
-    use std::sync::atomic::{AtomicUsize, Ordering};
+pub(crate) struct Invitations {
+    pending: AtomicUsize,
+}
 
+/// The process's count of untaken invitations (tests of the bound keep their own).
+pub(crate) static INVITATIONS: Invitations = Invitations::new();
+
+impl Invitations {
     /// The most invitations left untaken before no more are sent.
     pub const MAX_PENDING: usize = 1024;
 
-    static PENDING: AtomicUsize = AtomicUsize::new(0);
+    pub const fn new() -> Self {
+        Self {
+            pending: AtomicUsize::new(0),
+        }
+    }
 
     /// Account for an invitation to each of `workers` workers, if the bound allows: whether
     /// to send them.
-    pub fn send(workers: usize) -> bool {
-        if PENDING.load(Ordering::Relaxed) >= MAX_PENDING {
+    pub fn send(&self, workers: usize) -> bool {
+        if self.pending.load(Ordering::Relaxed) >= Self::MAX_PENDING {
             return false;
         }
-        PENDING.fetch_add(workers, Ordering::Relaxed);
+        self.pending.fetch_add(workers, Ordering::Relaxed);
         true
     }
 
     /// One invitation was taken (accepted or turned down).
-    pub fn taken() {
-        PENDING.fetch_sub(1, Ordering::Relaxed);
+    pub fn taken(&self) {
+        self.pending.fetch_sub(1, Ordering::Relaxed);
     }
 
     /// Invitations not yet taken.
     #[cfg(test)]
-    pub fn pending() -> usize {
-        PENDING.load(Ordering::Relaxed)
+    pub fn pending(&self) -> usize {
+        self.pending.load(Ordering::Relaxed)
     }
 }
 
@@ -419,24 +428,25 @@ mod tests {
             while !blocked.load(Ordering::Acquire) {
                 std::hint::spin_loop();
             }
-            for _ in 0..100 {
-                let standing_by = Arc::new(AtomicUsize::new(0));
-                let window = Duration::from_micros(50);
-                let sum = run_at_hand(
-                    Some(&pool),
-                    || {
-                        (0..10_000u32)
-                            .into_par_iter()
-                            .with_min_len(64)
-                            .map(u64::from)
-                            .sum::<u64>()
-                    },
-                    window,
-                    Arc::clone(&standing_by),
-                );
-                assert_eq!(sum, (0..10_000u64).sum::<u64>());
-            }
+            let sums: Vec<u64> = (0..100)
+                .map(|_| {
+                    run_at_hand(
+                        Some(&pool),
+                        || {
+                            (0..10_000u32)
+                                .into_par_iter()
+                                .with_min_len(64)
+                                .map(u64::from)
+                                .sum::<u64>()
+                        },
+                        Duration::from_micros(50),
+                        Arc::default(),
+                    )
+                })
+                .collect();
+            // Released before any assertion, so that a failure cannot hang the scope.
             done.store(true, Ordering::Release);
+            assert!(sums.iter().all(|&s| s == (0..10_000u64).sum::<u64>()));
         });
     }
 
