@@ -68,8 +68,6 @@ pub struct BlockedPairs {
     window_code: Vec<u8>,
     /// The path the pair loops take ([`SimdPath`]), set by [`Self::prepare`].
     path: SimdPath,
-    /// Whether that is [`SimdPath::Avx512`].
-    avx512: bool,
     /// How the AVX-512 kernels read neighbour values; [`Gather::for_this_cpu`] unless set.
     gather: Option<Gather>,
     /// Set by [`Self::set_simd_path`]: the path to take instead of [`SimdPath::in_use`].
@@ -209,7 +207,6 @@ impl BlockedPairs {
         let n = lists.len();
         self.n = n;
         self.path = self.forced_path.unwrap_or_else(SimdPath::in_use);
-        self.avx512 = self.path == SimdPath::Avx512;
         let blocks = n.div_ceil(LANES);
         // In one parallel pass over the blocks: each block's width (its longest list), and
         // whether its lists fit relative indices. Ascending lists span from their first entry
@@ -254,7 +251,7 @@ impl BlockedPairs {
         }
         self.grad_x.resize(entries, 0.0);
         self.grad_y.resize(entries, 0.0);
-        if self.avx512 && self.gather() == Gather::Windows {
+        if self.avx512() && self.gather() == Gather::Windows {
             self.window_start.resize(blocks, None);
             self.window_code.resize(entries, 0);
         } else {
@@ -305,7 +302,6 @@ impl BlockedPairs {
             });
             out.push(BlockWriter {
                 n,
-                avx512: self.avx512,
                 path: self.path,
                 gather,
                 slot_start: &self.slot_start,
@@ -415,7 +411,7 @@ impl BlockedPairs {
         let first = b * LANES;
         with_indices!(idx, |idx| {
             #[cfg(target_arch = "x86_64")]
-            if self.avx512 {
+            if self.avx512() {
                 // SAFETY: the CPU has AVX-512F (checked in `prepare`), and every index is
                 // below `self.n <= s.len()` (checked when written, by `BlockWriter`).
                 return unsafe {
@@ -449,7 +445,7 @@ impl BlockedPairs {
         let first = b * LANES;
         with_indices!(idx, |idx| {
             #[cfg(target_arch = "x86_64")]
-            if self.avx512 {
+            if self.avx512() {
                 // SAFETY: as above; `Vec2` is two consecutive f32, so component c of
                 // particle j is element 2j + c of the flat array, below 2·v.len().
                 return unsafe {
@@ -502,7 +498,7 @@ impl BlockedPairs {
         let first = b * LANES;
         with_indices!(idx, |idx| {
             #[cfg(target_arch = "x86_64")]
-            if self.avx512 {
+            if self.avx512() {
                 // SAFETY: AVX-512F is present (checked in `prepare`), every index is below
                 // `self.n <= vel.len()` (checked when written), and the per-particle arrays
                 // hold the block's `lanes` particles from `b·16` on (asserted above).
@@ -554,7 +550,7 @@ impl BlockedPairs {
         let first = b * LANES;
         with_indices!(idx, |idx| {
             #[cfg(target_arch = "x86_64")]
-            if self.avx512 {
+            if self.avx512() {
                 // SAFETY: AVX-512F is present, every index is below `self.n <= kappa.len()`,
                 // and `kappa`, `grad_sum` hold the block's particles (asserted above).
                 return unsafe {
@@ -602,7 +598,7 @@ impl BlockedPairs {
         assert!(delta.len() == particles.len() && rate.len() == particles.len());
         assert!(vel.len() >= self.n && terms.holds(self.n));
         #[cfg(target_arch = "x86_64")]
-        if self.avx512 {
+        if self.avx512() {
             // SAFETY: AVX-512F is present (checked in `prepare`), every index is below
             // `self.n <= vel.len()` (checked when written), the per-particle arrays hold all
             // particles (asserted above), and `delta`, `rate` and `errors` the blocks'.
@@ -637,7 +633,7 @@ impl BlockedPairs {
         assert!(kappa.len() >= self.n && grad_sum.len() >= self.n);
         assert!(total.as_ref().is_none_or(|t| t.len() == particles.len()));
         #[cfg(target_arch = "x86_64")]
-        if self.avx512 {
+        if self.avx512() {
             // SAFETY: AVX-512F is present, every index is below `self.n <= kappa.len()`,
             // `kappa` and `grad_sum` hold all particles, `vel` and `total` the blocks'
             // (asserted above).
@@ -692,7 +688,7 @@ impl BlockedPairs {
         let xi = self.per_lane(b, |i| pos[i] + dt * vel[i]);
         with_indices!(idx, |idx| {
             #[cfg(target_arch = "x86_64")]
-            if self.avx512 {
+            if self.avx512() {
                 // SAFETY: AVX-512F is present (checked in `prepare`), and every index is
                 // below `self.n <= pos.len(), vel.len()` (checked when written).
                 return unsafe {
@@ -747,7 +743,7 @@ impl BlockedPairs {
         let (xi, vi) = (self.per_lane(b, |i| pos[i]), self.per_lane(b, |i| vel[i]));
         with_indices!(idx, |idx| {
             #[cfg(target_arch = "x86_64")]
-            if self.avx512 {
+            if self.avx512() {
                 // SAFETY: AVX-512F is present (checked in `prepare`), the slices hold whole
                 // slots, and every index is below `self.n <= pos.len(), vel.len()`.
                 return unsafe {
@@ -788,12 +784,17 @@ impl BlockedPairs {
         assert!(path.available(), "this CPU cannot run the {path} path");
         self.forced_path = Some(path);
         self.path = path;
-        self.avx512 = path == SimdPath::Avx512;
     }
 
     /// The path the pair loops take.
     pub fn simd_path(&self) -> SimdPath {
         self.path
+    }
+
+    /// Whether the AVX-512 kernels run.
+    #[inline(always)]
+    fn avx512(&self) -> bool {
+        self.path == SimdPath::Avx512
     }
 
     /// Read neighbour values the given way in the SIMD kernels rather than the one
@@ -811,8 +812,6 @@ impl BlockedPairs {
 pub struct BlockWriter<'a> {
     /// Particles of the whole layout.
     n: usize,
-    /// Whether to run the AVX-512 kernels.
-    avx512: bool,
     /// The path the pair loops take.
     path: SimdPath,
     gather: Gather,
@@ -835,6 +834,12 @@ struct WindowsMut<'a> {
 }
 
 impl BlockWriter<'_> {
+    /// Whether the AVX-512 kernels run.
+    #[inline(always)]
+    fn avx512(&self) -> bool {
+        self.path == SimdPath::Avx512
+    }
+
     /// Block `b`'s entries within the writer's arrays.
     fn entries(&self, b: usize) -> std::ops::Range<usize> {
         let first = self.slot_start[b] as usize - self.base;
@@ -935,7 +940,7 @@ impl BlockWriter<'_> {
         }
         let lens: [u32; LANES] = std::array::from_fn(|l| lane_lists[l].len() as u32);
         #[cfg(target_arch = "x86_64")]
-        if self.avx512 {
+        if self.avx512() {
             assert!(
                 lens.iter().all(|&len| len as usize <= width),
                 "the blocks were laid out for other lists"
