@@ -481,7 +481,7 @@ impl<'a, T> Shared<'a, T> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::parallel::test_pool as pool;
+    use crate::parallel::{test_pool as pool, with_a_worker_held};
 
     /// [`run`] with every worker of the pool a member: a window long enough for any idle
     /// worker of a test machine to join.
@@ -606,21 +606,23 @@ mod tests {
     #[test]
     fn a_worker_blocked_elsewhere_does_not_hold_up_a_region() {
         let pool = pool(3);
-        let sums: Vec<Vec<u64>> = with_a_worker_blocked(&pool, || {
-            (0..200)
-                .map(|_| {
-                    run(|team| {
-                        let mut sum = 0u64;
-                        for pass in 0..5u64 {
-                            for p in team.parts(team.share(64, |k| k as u64)) {
-                                sum += p as u64 * pass;
+        let sums: Vec<Vec<u64>> = with_a_worker_held(&pool, || {
+            pool.install(|| {
+                (0..200)
+                    .map(|_| {
+                        run(|team| {
+                            let mut sum = 0u64;
+                            for pass in 0..5u64 {
+                                for p in team.parts(team.share(64, |k| k as u64)) {
+                                    sum += p as u64 * pass;
+                                }
+                                team.wait();
                             }
-                            team.wait();
-                        }
-                        sum
+                            sum
+                        })
                     })
-                })
-                .collect()
+                    .collect()
+            })
         });
         for s in sums {
             assert!((1..=2).contains(&s.len()), "{} members", s.len());
@@ -636,46 +638,20 @@ mod tests {
         static OWN: Invitations = Invitations::new();
         const MAX_PENDING: usize = Invitations::MAX_PENDING;
         let pool = pool(2);
-        let (members, pending) = with_a_worker_blocked(&pool, || {
-            let members: Vec<usize> = (0..MAX_PENDING + 500)
-                .map(|_| run_joined_within(JOIN_WINDOW, &OWN, |team| team.count()).len())
-                .collect();
-            (members, OWN.pending())
+        let (members, pending) = with_a_worker_held(&pool, || {
+            pool.install(|| {
+                let members: Vec<usize> = (0..MAX_PENDING + 500)
+                    .map(|_| run_joined_within(JOIN_WINDOW, &OWN, |team| team.count()).len())
+                    .collect();
+                // Read on the worker that ran them, before it can take its own invitations.
+                (members, OWN.pending())
+            })
         });
         assert!(
             (MAX_PENDING..MAX_PENDING + 4).contains(&pending),
             "{pending} pending"
         );
         assert!(members.iter().all(|&m| m == 1), "{members:?}");
-    }
-
-    /// Run `work` on a worker of `pool` while another of its workers is held in a task (from
-    /// before `work` starts until it ends, also if it panics), and return what it returned.
-    fn with_a_worker_blocked<R: Send>(
-        pool: &rayon::ThreadPool,
-        work: impl FnOnce() -> R + Send,
-    ) -> R {
-        let (held, release) = (AtomicBool::new(false), AtomicBool::new(false));
-        pool.in_place_scope(|s| {
-            s.spawn(|_| {
-                held.store(true, Ordering::Release);
-                while !release.load(Ordering::Acquire) {
-                    std::thread::yield_now();
-                }
-            });
-            while !held.load(Ordering::Acquire) {
-                std::hint::spin_loop();
-            }
-            /// Releases the held worker when dropped, also while a panic unwinds.
-            struct Release<'a>(&'a AtomicBool);
-            impl Drop for Release<'_> {
-                fn drop(&mut self) {
-                    self.0.store(true, Ordering::Release);
-                }
-            }
-            let _release = Release(&release);
-            pool.install(work)
-        })
     }
 
     #[test]

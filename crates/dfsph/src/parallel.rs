@@ -258,6 +258,34 @@ pub(crate) fn test_pool(threads: usize) -> rayon::ThreadPool {
         .unwrap()
 }
 
+/// For tests: run `work` on the calling thread while a worker of `pool` is held in a task,
+/// from before `work` starts until it ends (also if it panics, so that a failing assertion
+/// cannot hang the pool's scope), and return what `work` returned.
+#[cfg(test)]
+pub(crate) fn with_a_worker_held<R>(pool: &rayon::ThreadPool, work: impl FnOnce() -> R) -> R {
+    /// Releases the held worker when dropped, also while a panic unwinds.
+    struct Release<'a>(&'a AtomicBool);
+    impl Drop for Release<'_> {
+        fn drop(&mut self) {
+            self.0.store(true, Ordering::Release);
+        }
+    }
+    let (held, release) = (AtomicBool::new(false), AtomicBool::new(false));
+    pool.in_place_scope(|s| {
+        s.spawn(|_| {
+            held.store(true, Ordering::Release);
+            while !release.load(Ordering::Acquire) {
+                std::thread::yield_now();
+            }
+        });
+        while !held.load(Ordering::Acquire) {
+            std::hint::spin_loop();
+        }
+        let _release = Release(&release);
+        work()
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -417,18 +445,8 @@ mod tests {
     #[test]
     fn a_worker_blocked_elsewhere_does_not_hold_up_the_work() {
         let pool = pool(2);
-        let (blocked, done) = (AtomicBool::new(false), AtomicBool::new(false));
-        pool.in_place_scope(|s| {
-            s.spawn(|_| {
-                blocked.store(true, Ordering::Release);
-                while !done.load(Ordering::Acquire) {
-                    std::thread::yield_now();
-                }
-            });
-            while !blocked.load(Ordering::Acquire) {
-                std::hint::spin_loop();
-            }
-            let sums: Vec<u64> = (0..100)
+        let sums: Vec<u64> = with_a_worker_held(&pool, || {
+            (0..100)
                 .map(|_| {
                     run_at_hand(
                         Some(&pool),
@@ -443,11 +461,9 @@ mod tests {
                         Arc::default(),
                     )
                 })
-                .collect();
-            // Released before any assertion, so that a failure cannot hang the scope.
-            done.store(true, Ordering::Release);
-            assert!(sums.iter().all(|&s| s == (0..10_000u64).sum::<u64>()));
+                .collect()
         });
+        assert!(sums.iter().all(|&s| s == (0..10_000u64).sum::<u64>()));
     }
 
     #[test]
