@@ -327,9 +327,40 @@ unsafe fn gather<T: Copy + Default, I: SlotIndex>(
     out
 }
 
-/// `Σ_j s_j ∇W_ij` per lane, x and y, slot by slot in list order: the lane kernel of
-/// [`BlockedPairs::weighted_gradient_sums`] (the same sums as the AVX-512 kernel's, with
-/// fused multiply-adds where `FUSED`).
+/// `(Σ_j a_j ∂W_ij/∂x, Σ_j b_j ∂W_ij/∂y)` per lane, with `(a_j, b_j) = parts(values[j])`,
+/// slot by slot in list order, with fused multiply-adds where `FUSED`: the pair loop of the
+/// pressure solve's two passes (the AVX-512 kernels' sums, in their order).
+///
+/// # Safety
+/// The three slices must hold whole slots, and every index must be below `values.len()`.
+#[inline(always)]
+unsafe fn lane_gradient_sums<I: SlotIndex, T: Copy + Default, const FUSED: bool>(
+    idx: &[I],
+    first: usize,
+    gx: &[f32],
+    gy: &[f32],
+    values: &[T],
+    parts: impl Fn(T) -> (f32, f32),
+) -> ([f32; LANES], [f32; LANES]) {
+    let mut ax = [0.0f32; LANES];
+    let mut ay = [0.0f32; LANES];
+    for ((slot, x), y) in idx
+        .chunks_exact(LANES)
+        .zip(gx.chunks_exact(LANES))
+        .zip(gy.chunks_exact(LANES))
+    {
+        let vj = gather(values, first, slot);
+        for l in 0..LANES {
+            let (a, b) = parts(vj[l]);
+            ax[l] = mul_add::<FUSED>(a, x[l], ax[l]);
+            ay[l] = mul_add::<FUSED>(b, y[l], ay[l]);
+        }
+    }
+    (ax, ay)
+}
+
+/// `Σ_j s_j ∇W_ij` per lane, x and y: the lane kernel of
+/// [`BlockedPairs::weighted_gradient_sums`].
 ///
 /// # Safety
 /// The three slices must hold whole slots, and every index must be below `s.len()`.
@@ -341,25 +372,11 @@ pub(super) unsafe fn lane_weighted_gradient_sums<I: SlotIndex, const FUSED: bool
     gy: &[f32],
     s: &[f32],
 ) -> ([f32; LANES], [f32; LANES]) {
-    let mut ax = [0.0f32; LANES];
-    let mut ay = [0.0f32; LANES];
-    for ((slot, x), y) in idx
-        .chunks_exact(LANES)
-        .zip(gx.chunks_exact(LANES))
-        .zip(gy.chunks_exact(LANES))
-    {
-        let sj = gather(s, first, slot);
-        for l in 0..LANES {
-            ax[l] = mul_add::<FUSED>(sj[l], x[l], ax[l]);
-            ay[l] = mul_add::<FUSED>(sj[l], y[l], ay[l]);
-        }
-    }
-    (ax, ay)
+    lane_gradient_sums::<I, f32, FUSED>(idx, first, gx, gy, s, |sj| (sj, sj))
 }
 
-/// `Σ_j v_j·∇W_ij` per lane: x and y summed apart, slot by slot in list order, then added —
-/// the lane kernel of [`BlockedPairs::velocity_gradient_dots`] (the AVX-512 kernel's order,
-/// with fused multiply-adds where `FUSED`).
+/// `Σ_j v_j·∇W_ij` per lane, x and y summed apart, then added: the lane kernel of
+/// [`BlockedPairs::velocity_gradient_dots`] (the AVX-512 kernel's order).
 ///
 /// # Safety
 /// The three slices must hold whole slots, and every index must be below `v.len()`.
@@ -371,18 +388,6 @@ pub(super) unsafe fn lane_velocity_gradient_dots<I: SlotIndex, const FUSED: bool
     gy: &[f32],
     v: &[Vec2],
 ) -> [f32; LANES] {
-    let mut ax = [0.0f32; LANES];
-    let mut ay = [0.0f32; LANES];
-    for ((slot, x), y) in idx
-        .chunks_exact(LANES)
-        .zip(gx.chunks_exact(LANES))
-        .zip(gy.chunks_exact(LANES))
-    {
-        let vj = gather(v, first, slot);
-        for l in 0..LANES {
-            ax[l] = mul_add::<FUSED>(vj[l].x, x[l], ax[l]);
-            ay[l] = mul_add::<FUSED>(vj[l].y, y[l], ay[l]);
-        }
-    }
+    let (ax, ay) = lane_gradient_sums::<I, Vec2, FUSED>(idx, first, gx, gy, v, |vj| (vj.x, vj.y));
     std::array::from_fn(|l| ax[l] + ay[l])
 }
