@@ -2,8 +2,8 @@
 //! these actions and the simulation applies them between steps, so every interaction can be
 //! tested, recorded and replayed without a window.
 
+use crate::par::prelude::*;
 use glam::Vec2;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::boundary::{Body, BodyId, BoundarySamples};

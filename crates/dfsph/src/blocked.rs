@@ -27,7 +27,7 @@
 use glam::Vec2;
 use std::ops::Range;
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use crate::kernel::CubicSpline;
 use crate::neighbors::NeighborLists;

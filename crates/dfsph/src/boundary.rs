@@ -161,7 +161,7 @@ pub fn wall_volume_correction(kernel: &CubicSpline, d: f32) -> f32 {
 /// Akinci volumes `Ψ_b = γ / Σ_k W_bk` of boundary particles already sorted in `grid`, for
 /// the particles whose `volume` entry is not already positive (lattice walls come with theirs).
 pub fn volumes(grid: &Grid, kernel: &CubicSpline, gamma: f32, volume: &mut [f32]) {
-    use rayon::prelude::*;
+    use crate::par::prelude::*;
     let pts = grid.sorted_points();
     volume
         .par_iter_mut()

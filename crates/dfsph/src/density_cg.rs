@@ -38,8 +38,8 @@
 //! hydrostatic initial pressure ([`crate::simulation::hydrostatic_pressure`]), which make water
 //! at rest the discrete equilibrium; the simulation sets all three together.
 
+use crate::par::prelude::*;
 use glam::Vec2;
-use rayon::prelude::*;
 
 use crate::parallel::LIGHT_PASS_MIN_ITEMS;
 use crate::particles::FluidParticles;

@@ -1,8 +1,8 @@
 //! Non-pressure accelerations: gravity, viscosity (XSPH and a Laplacian model with kinematic
 //! viscosity), and the user's pointer force.
 
+use crate::par::prelude::*;
 use glam::Vec2;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::blocked::LANES;

@@ -34,6 +34,7 @@ pub(crate) mod lockstep;
 pub mod memory;
 pub mod neighbors;
 pub mod packing;
+pub(crate) mod par;
 pub(crate) mod parallel;
 pub mod particles;
 pub mod probes;

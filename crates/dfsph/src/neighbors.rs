@@ -12,10 +12,10 @@
 //! very far away) the keys fall back to a hash of the cell coordinates, which keeps memory
 //! proportional to the point count and results exact (every candidate is distance-checked).
 
+use crate::par::prelude::*;
 use crate::parallel::LIGHT_PASS_MIN_ITEMS;
 use crate::simd::SimdPath;
 use glam::Vec2;
-use rayon::prelude::*;
 
 /// Particles per parallel work item when building neighbour lists.
 const CHUNK: usize = 512;

@@ -289,7 +289,7 @@ pub(crate) fn with_a_worker_held<R>(pool: &rayon::ThreadPool, work: impl FnOnce(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rayon::prelude::*;
+    use crate::par::prelude::*;
     use std::time::{Duration, Instant};
 
     use super::test_pool as pool;

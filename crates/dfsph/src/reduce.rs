@@ -8,8 +8,8 @@
 //! most [`MAX_PARTS`] parts whose bounds depend only on the item count; each part is reduced
 //! in item order, and the parts in part order.
 
+use crate::par::prelude::*;
 use crate::parallel::LIGHT_PASS_MIN_ITEMS;
-use rayon::prelude::*;
 
 /// The most parts a reduction is cut into; its partial results live on the stack.
 pub const MAX_PARTS: usize = 256;

@@ -1,9 +1,9 @@
 //! The simulation: owns the particle state, runs one DFSPH (or WCSPH) step at a time with CFL
 //! time stepping, and reports diagnostics for every step.
 
+use crate::par::prelude::*;
 use crate::parallel::{self, LIGHT_PASS_MIN_ITEMS};
 use glam::Vec2;
-use rayon::prelude::*;
 use serde::Serialize;
 use std::time::Instant;
 

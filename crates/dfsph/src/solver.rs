@@ -19,8 +19,8 @@
 
 use std::ops::Range;
 
+use crate::par::prelude::*;
 use glam::Vec2;
-use rayon::prelude::*;
 
 use crate::lockstep::{self, Shared};
 use crate::parallel::LIGHT_PASS_MIN_ITEMS;
