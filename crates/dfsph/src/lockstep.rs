@@ -37,7 +37,7 @@ pub struct Team<'a> {
 
 impl Team<'_> {
     /// This worker's number, `0..count()` (the solver's passes need only their shares).
-    #[cfg(test)]
+    #[cfg(all(test, feature = "parallel"))]
     pub fn index(&self) -> usize {
         self.index
     }
@@ -164,7 +164,7 @@ const JOIN_WINDOW: Duration = Duration::from_micros(200);
 /// pool's other workers are doing.
 ///
 /// Progress does not depend on them: the other workers are invited with
-/// `rayon::spawn_broadcast`, which does not wait for them; the members are fixed when the
+/// `par::invite_every_worker` (rayon's `spawn_broadcast`), which does not wait for them; the members are fixed when the
 /// door closes, and a barrier waits only for members, which run nothing but `body` until it
 /// returns (a barrier spins, then yields its core, and never runs other tasks). An
 /// invitation taken after the door closed returns at once.
@@ -182,8 +182,8 @@ fn run_joined_within<R: Send>(
     invitations: &'static Invitations,
     body: impl Fn(&Team) -> R + Sync,
 ) -> Vec<R> {
-    let workers = rayon::current_num_threads();
-    let outside = rayon::current_thread_index().is_none();
+    let workers = crate::par::current_num_threads();
+    let outside = crate::par::current_thread_index().is_none();
     // At most every worker, plus the caller where it is not one of them.
     let most = workers + usize::from(outside);
     if workers == 1 {
@@ -222,7 +222,7 @@ fn run_joined_within<R: Send>(
     // run on their caller alone rather than pile up more.
     let invited = invitations.send(workers);
     if invited {
-        rayon::spawn_broadcast(move |_| {
+        crate::par::invite_every_worker(move || {
             invitations.taken();
             invitation.accept();
         });
@@ -478,7 +478,8 @@ impl<'a, T> Shared<'a, T> {
     }
 }
 
-#[cfg(test)]
+// The regions' tests need a pool of several workers.
+#[cfg(all(test, feature = "parallel"))]
 mod tests {
     use super::*;
     use crate::parallel::{test_pool as pool, with_a_worker_held};

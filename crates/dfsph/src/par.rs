@@ -8,6 +8,47 @@
 //! Only the rayon adaptors the solver uses are mirrored; a pass that needs another one adds it
 //! here, and the serial build fails to compile until it does.
 
+/// Workers of the pool the caller is in (or would hand work to): rayon's, or 1 in the serial
+/// build.
+#[inline]
+pub(crate) fn current_num_threads() -> usize {
+    #[cfg(feature = "parallel")]
+    return rayon::current_num_threads();
+    #[cfg(not(feature = "parallel"))]
+    return 1;
+}
+
+/// The calling thread's index in its rayon pool; `None` outside a pool and in the serial
+/// build.
+#[inline]
+pub(crate) fn current_thread_index() -> Option<usize> {
+    #[cfg(feature = "parallel")]
+    return rayon::current_thread_index();
+    #[cfg(not(feature = "parallel"))]
+    return None;
+}
+
+/// Run `work` as a task of the current pool (so that the passes it forks are pool tasks and
+/// its caller sleeps until it ends), or on the calling thread in the serial build.
+#[inline]
+pub(crate) fn on_a_worker<R: Send>(work: impl FnOnce() -> R + Send) -> R {
+    #[cfg(feature = "parallel")]
+    return rayon::scope(|_| work());
+    #[cfg(not(feature = "parallel"))]
+    return work();
+}
+
+/// Send `invitation` to every worker of the current pool without waiting for any of them
+/// (rayon's `spawn_broadcast`). The serial build has no workers to invite: regions and
+/// stand-bys then run on their caller alone, which is always enough to finish them.
+#[inline]
+pub(crate) fn invite_every_worker(invitation: impl Fn() + Send + Sync + 'static) {
+    #[cfg(feature = "parallel")]
+    rayon::spawn_broadcast(move |_| invitation());
+    #[cfg(not(feature = "parallel"))]
+    drop(invitation);
+}
+
 #[cfg(feature = "parallel")]
 pub(crate) mod prelude {
     pub(crate) use rayon::prelude::*;

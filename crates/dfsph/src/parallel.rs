@@ -11,9 +11,11 @@
 //! a maximum) pay for splitting at a few thousand items.
 
 use std::cell::Cell;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Duration;
+// The standing-by machinery, which the serial build has no workers for.
+#[cfg(feature = "parallel")]
+use std::{sync::atomic::AtomicBool, sync::Arc, time::Instant};
 
 /// Fewest items a task of a light pass (a few arithmetic operations, or one copy, per
 /// item) is given: such a pass over fewer items than this runs on one worker. At about
@@ -23,12 +25,14 @@ use std::time::{Duration, Instant};
 /// light pass there on one worker; 512 took 3 % less.)
 pub const LIGHT_PASS_MIN_ITEMS: usize = 2 * 1024;
 
+#[cfg(feature = "parallel")]
 /// Polls of the pool that find nothing before a worker at hand starts giving its core away
 /// between polls (a few hundred µs): the serial stretches of a step are tens of µs, but a
 /// pool with more workers than cores must not have them spin through the time slices of
 /// the worker that runs the step.
 const IDLE_POLLS_BEFORE_YIELD: u32 = 1 << 12;
 
+#[cfg(feature = "parallel")]
 /// How long the worker that runs the work waits for the others to join
 /// [`with_workers_at_hand`] before it starts without those still missing. A worker that is
 /// polling for tasks joins within a microsecond or two; one that has gone to sleep takes
@@ -81,12 +85,16 @@ thread_local! {
 /// from inside a pool, or with a pool of one worker, this just runs `work` on the calling
 /// thread.
 pub fn with_workers_at_hand<R: Send>(work: impl FnOnce() -> R + Send) -> R {
-    if rayon::current_thread_index().is_some() || rayon::current_num_threads() == 1 {
+    if crate::par::current_thread_index().is_some() || crate::par::current_num_threads() == 1 {
         return work();
     }
-    run_at_hand(None, work, JOIN_WINDOW, Arc::default())
+    #[cfg(feature = "parallel")]
+    return run_at_hand(None, work, JOIN_WINDOW, Arc::default());
+    #[cfg(not(feature = "parallel"))]
+    return work();
 }
 
+#[cfg(feature = "parallel")]
 /// [`with_workers_at_hand`] on `pool` (the global pool where `None`), called from outside
 /// it, counting the workers standing by in `standing_by`.
 ///
@@ -144,10 +152,12 @@ fn run_at_hand<R: Send>(
     }
 }
 
+#[cfg(feature = "parallel")]
 /// Set in [`AtHand::door`] once the work has started; the bits below count the workers that
 /// joined before.
 const CLOSED: usize = 1 << (usize::BITS - 1);
 
+#[cfg(feature = "parallel")]
 /// One [`run_at_hand`] call, as its invitations see it.
 struct AtHand {
     door: AtomicUsize,
@@ -156,6 +166,7 @@ struct AtHand {
     standing_by: Arc<AtomicUsize>,
 }
 
+#[cfg(feature = "parallel")]
 impl AtHand {
     /// An invitation: stand by until the work is done, if the door is still open and this
     /// worker is not already running or standing by for such work.
@@ -215,12 +226,13 @@ impl Invitations {
     }
 
     /// Invitations not yet taken.
-    #[cfg(test)]
+    #[cfg(all(test, feature = "parallel"))]
     pub fn pending(&self) -> usize {
         self.pending.load(Ordering::Relaxed)
     }
 }
 
+#[cfg(feature = "parallel")]
 /// Poll the pool for tasks, running them, until `ready()`.
 fn wait_until(ready: impl Fn() -> bool) {
     let mut idle = 0u32;
@@ -236,12 +248,14 @@ fn wait_until(ready: impl Fn() -> bool) {
     }
 }
 
+#[cfg(feature = "parallel")]
 /// Ends a [`run_at_hand`] call on the worker that ran its work, returned or unwinding.
 struct EndOnDrop<'a> {
     done: &'a AtomicBool,
     was_busy: bool,
 }
 
+#[cfg(feature = "parallel")]
 impl Drop for EndOnDrop<'_> {
     fn drop(&mut self) {
         AT_HAND_BUSY.set(self.was_busy);
@@ -250,7 +264,7 @@ impl Drop for EndOnDrop<'_> {
 }
 
 /// A pool of `threads` workers, for tests.
-#[cfg(test)]
+#[cfg(all(test, feature = "parallel"))]
 pub(crate) fn test_pool(threads: usize) -> rayon::ThreadPool {
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
@@ -261,7 +275,7 @@ pub(crate) fn test_pool(threads: usize) -> rayon::ThreadPool {
 /// For tests: run `work` on the calling thread while a worker of `pool` is held in a task,
 /// from before `work` starts until it ends (also if it panics, so that a failing assertion
 /// cannot hang the pool's scope), and return what `work` returned.
-#[cfg(test)]
+#[cfg(all(test, feature = "parallel"))]
 pub(crate) fn with_a_worker_held<R>(pool: &rayon::ThreadPool, work: impl FnOnce() -> R) -> R {
     /// Releases the held worker when dropped, also while a panic unwinds.
     struct Release<'a>(&'a AtomicBool);
@@ -286,7 +300,8 @@ pub(crate) fn with_a_worker_held<R>(pool: &rayon::ThreadPool, work: impl FnOnce(
     })
 }
 
-#[cfg(test)]
+// Standing by needs a pool of several workers.
+#[cfg(all(test, feature = "parallel"))]
 mod tests {
     use super::*;
     use crate::par::prelude::*;

@@ -7,6 +7,8 @@
 //! A pool whose every worker is blocked cannot run anything, this solver's passes included;
 //! and a blocking task that a worker steals while it waits inside a step (rayon's
 //! work-stealing wait) blocks that step: rayon's rule, not to block in its tasks, stands.
+// The solver runs in rayon's pools only in the default `parallel` build.
+#![cfg(feature = "parallel")]
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
