@@ -73,6 +73,13 @@ pub struct BenchArgs {
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
 
+    /// The real-time factor people feel: the dam break with the viewer's default settings
+    /// (the built-in scene as the window opens it, only the particle size set by the case),
+    /// 2 simulated seconds per case, on 2 threads unless `--threads` says otherwise. The
+    /// table's `rt x` column is simulated seconds per wall second.
+    #[arg(long, conflicts_with_all = ["codes", "salva_dt", "quick", "from_json"])]
+    pub realtime: bool,
+
     /// Run nothing: read rows from these JSON files (written by `--json`), then print the
     /// table and write `--json`/`--plot` from them. Comma-separated.
     #[arg(long, value_name = "FILES", value_delimiter = ',')]
@@ -97,6 +104,9 @@ pub struct RowArgs {
     /// salva2d's fixed Δt, s.
     #[arg(long, value_parser = positive)]
     pub salva_dt: Option<f64>,
+    /// Which settings the dam break runs with.
+    #[arg(long, value_enum, default_value_t = Settings::Benchmark)]
+    pub settings: Settings,
     /// Process id of the `dfsph2d bench` that started this row: the row ends if that process
     /// is gone before the row has asked to be killed with it.
     #[arg(long)]
@@ -124,6 +134,36 @@ impl Code {
         }
     }
 }
+
+/// The solver settings of a row's dam break.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum, Serialize, Deserialize)]
+pub enum Settings {
+    /// BENCHMARK.md's (tolerances, CFL 0.2, Δt up to 5 ms, XSPH 0.01).
+    #[default]
+    #[value(name = "benchmark")]
+    #[serde(rename = "benchmark")]
+    Benchmark,
+    /// The built-in scene's, as the viewer opens it (`bench --realtime`).
+    #[value(name = "viewer")]
+    #[serde(rename = "viewer")]
+    Viewer,
+}
+
+impl Settings {
+    fn name(self) -> &'static str {
+        match self {
+            Settings::Benchmark => "benchmark",
+            Settings::Viewer => "viewer",
+        }
+    }
+}
+
+/// Simulated seconds of each `bench --realtime` case: the dam break's first surge to the far
+/// wall and back, what a person opening the window sees first.
+const REALTIME_INTERVAL: f64 = 2.0;
+/// Threads of `bench --realtime` unless `--threads` is given: the two cores the issue's
+/// targets are stated for.
+const REALTIME_THREADS: u32 = 2;
 
 /// A standard resolution of the dam break.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -259,6 +299,10 @@ pub struct Row {
     /// saved before it was recorded.
     #[serde(default)]
     pub runtime_simd: String,
+    /// The solver settings: `benchmark` (BENCHMARK.md) or `viewer` (the built-in scene's
+    /// defaults, `bench --realtime`). `benchmark` in rows saved before it was recorded.
+    #[serde(default)]
+    pub settings: Settings,
     /// Wall seconds of every run of this row; the row's other numbers are the median run's.
     pub wall_seconds_runs: Vec<f64>,
 }
@@ -275,7 +319,16 @@ pub fn bench(args: BenchArgs) -> Result<(), String> {
             rows.append(&mut more);
         }
     } else {
-        let codes = codes(&args.codes)?;
+        let codes = if args.realtime {
+            vec![Code::Dfsph2d]
+        } else {
+            codes(&args.codes)?
+        };
+        let settings = if args.realtime {
+            Settings::Viewer
+        } else {
+            Settings::Benchmark
+        };
         let sizes = if args.quick {
             vec![Size::Quick]
         } else if args.sizes.is_empty() {
@@ -284,7 +337,7 @@ pub fn bench(args: BenchArgs) -> Result<(), String> {
             args.sizes.clone()
         };
         let threads: Vec<Option<u32>> = if args.threads.is_empty() {
-            vec![None]
+            vec![args.realtime.then_some(REALTIME_THREADS)]
         } else {
             args.threads.iter().map(|&t| Some(t)).collect()
         };
@@ -297,22 +350,27 @@ pub fn bench(args: BenchArgs) -> Result<(), String> {
         for &size in &sizes {
             for &t in &threads {
                 for &code in &codes {
-                    let until = args.until.unwrap_or(size.interval());
+                    let until = args.until.unwrap_or(if args.realtime {
+                        REALTIME_INTERVAL
+                    } else {
+                        size.interval()
+                    });
                     let salva_dt = args.salva_dt.unwrap_or(size.salva_dt());
                     let mut runs = Vec::new();
                     for k in 0..args.runs {
                         eprintln!(
-                            "bench: {} {} ({} particles, d = {} m), {} s, threads {}, run {}/{}",
+                            "bench: {} {} ({} particles, d = {} m, {} settings), {} s, threads {}, run {}/{}",
                             code.name(),
                             size.name(),
                             expected_particles(size.spacing()),
                             size.spacing(),
+                            settings.name(),
                             until,
                             t.map_or("all".to_string(), |t| t.to_string()),
                             k + 1,
                             args.runs
                         );
-                        runs.push(run_child(&exe, code, size, until, t, salva_dt)?);
+                        runs.push(run_child(&exe, code, size, settings, until, t, salva_dt)?);
                     }
                     rows.push(median_row(runs));
                 }
@@ -395,6 +453,7 @@ fn run_child(
     exe: &Path,
     code: Code,
     size: Size,
+    settings: Settings,
     until: f64,
     threads: Option<u32>,
     salva_dt: f64,
@@ -404,6 +463,7 @@ fn run_child(
         .args(["--spacing", &size.spacing().to_string()])
         .args(["--until", &until.to_string()])
         .args(["--salva-dt", &salva_dt.to_string()])
+        .args(["--settings", settings.name()])
         .args(["--parent", &std::process::id().to_string()]);
     if let Some(t) = threads {
         cmd.args(["--threads", &t.to_string()]);
@@ -447,25 +507,29 @@ pub fn table(rows: &[Row]) -> String {
     let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
     let _ = writeln!(
         s,
-        "{:<8} {:>5} {:>3} {:>7} {:>6} {:>8} {:>6} {:>9} {:>6} {:>6} {:>10} {:>8} {:>8} {:>6} {:>7} {:>7}",
-        "code", "case", "thr", "n", "sim s", "wall s", "steps", "mean dt", "dens", "div",
+        "{:<8} {:>5} {:>3} {:>7} {:>6} {:>8} {:>6} {:>6} {:>9} {:>6} {:>6} {:>10} {:>8} {:>8} {:>6} {:>7} {:>7}",
+        "code", "case", "thr", "n", "sim s", "wall s", "rt x", "steps", "mean dt", "dens", "div",
         "p-steps/s", "ns/p-st", "peak MiB", "B/p", "front", "fr@0.4"
     );
     for r in rows {
-        let runs = if r.wall_seconds_runs.len() > 1 {
+        let mut runs = if r.wall_seconds_runs.len() > 1 {
             format!(" (median of {})", r.wall_seconds_runs.len())
         } else {
             String::new()
         };
+        if r.settings == Settings::Viewer {
+            runs.push_str(" (viewer settings)");
+        }
         let _ = writeln!(
             s,
-            "{:<8} {:>5} {:>3} {:>7} {:>6.3} {:>8.2} {:>6} {:>9.2e} {:>6} {:>6} {:>10.3e} {:>8.1} {:>8.1} {:>6.0} {:>7.3} {:>7}{}",
+            "{:<8} {:>5} {:>3} {:>7} {:>6.3} {:>8.2} {:>6.2} {:>6} {:>9.2e} {:>6} {:>6} {:>10.3e} {:>8.1} {:>8.1} {:>6.0} {:>7.3} {:>7}{}",
             r.code.name(),
             r.case,
             r.threads,
             r.n,
             r.sim_seconds,
             r.wall_seconds,
+            r.sim_seconds / r.wall_seconds.max(1.0e-12),
             r.steps,
             r.mean_dt,
             opt(r.avg_density_iterations),

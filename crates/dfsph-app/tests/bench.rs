@@ -172,3 +172,57 @@ fn killing_bench_ends_its_row_process() {
         std::thread::sleep(Duration::from_millis(50));
     }
 }
+
+/// `bench --realtime` runs the dam break with the viewer's settings (the built-in scene's
+/// own: Δt at most its `time_step.max`, its XSPH), on two threads by default, and reports the
+/// real-time factor.
+#[test]
+fn realtime_bench_runs_the_viewer_settings_on_two_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("rt.json");
+    let out = Command::new(BIN)
+        .args([
+            "bench",
+            "--realtime",
+            "--sizes",
+            "5k",
+            "--until",
+            "0.02",
+            "--json",
+        ])
+        .arg(&json)
+        .output()
+        .expect("dfsph2d runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("rt x") && stdout.contains("(viewer settings)"),
+        "{stdout}"
+    );
+    let rows: Vec<serde_json::Value> =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(rows.len(), 1, "{rows:?}");
+    let row = &rows[0];
+    let scene = dfsph::scene::builtin("dam-break").unwrap();
+    assert_eq!(row["settings"], "viewer");
+    assert_eq!(row["threads"], 2);
+    assert_eq!(row["n"], 5000);
+    assert_eq!(row["xsph"].as_f64(), Some(scene.viscosity.xsph));
+    let mean_dt = row["mean_dt"].as_f64().unwrap();
+    // (Δt is an f32: 1 ms is 1.0000000475 ms.)
+    assert!(
+        mean_dt > 0.0 && mean_dt <= scene.time_step.max * (1.0 + 1e-6),
+        "{row}"
+    );
+
+    // The benchmark's own settings are another row kind, and salva2d has only those.
+    let refused = Command::new(BIN)
+        .args(["bench", "--realtime", "--codes", "salva2d"])
+        .output()
+        .unwrap();
+    assert_eq!(refused.status.code(), Some(2));
+}

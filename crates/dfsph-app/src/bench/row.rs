@@ -7,7 +7,7 @@ use dfsph::scene::{self, Method, Scene, TimeStepParams};
 use dfsph::simd::SimdPath;
 use dfsph::{Simulation, Vec2};
 
-use super::{Code, Row, RowArgs};
+use super::{Code, Row, RowArgs, Settings};
 
 /// XSPH coefficient of both codes (dimensionless; our scene default).
 pub const XSPH: f64 = 0.01;
@@ -24,6 +24,9 @@ pub fn run_row(args: RowArgs) -> Result<(), String> {
             .num_threads(n as usize)
             .build_global()
             .map_err(|e| format!("cannot start {n} threads: {e}"))?;
+    }
+    if args.code == Code::Salva2d && args.settings == Settings::Viewer {
+        return Err("salva2d rows run with the benchmark settings only".into());
     }
     let baseline = proc_status_bytes("VmRSS").unwrap_or(0);
     let mut row = match args.code {
@@ -65,8 +68,18 @@ pub fn bench_scene(d: f64) -> Scene {
     scene
 }
 
+/// The dam break as the viewer opens it, at spacing `d`: the built-in scene's own settings.
+pub fn viewer_scene(d: f64) -> Scene {
+    let mut scene = scene::builtin("dam-break").expect("the dam break is built in");
+    scene.particle_radius = 0.5 * d;
+    scene
+}
+
 fn run_dfsph(args: &RowArgs) -> Result<Row, String> {
-    let scene = bench_scene(args.spacing);
+    let scene = match args.settings {
+        Settings::Benchmark => bench_scene(args.spacing),
+        Settings::Viewer => viewer_scene(args.spacing),
+    };
     let setup = Instant::now();
     let mut sim = Simulation::new(&scene).map_err(|e| format!("benchmark scene: {e}"))?;
     let setup_seconds = setup.elapsed().as_secs_f64();
@@ -106,6 +119,7 @@ fn run_dfsph(args: &RowArgs) -> Result<Row, String> {
     row.leaked = sim.total_clamped();
     row.non_finite = sim.total_non_finite();
     row.retries = retries;
+    row.xsph = scene.viscosity.xsph;
     row.finish_timing(wall, steps);
     Ok(row)
 }
@@ -156,6 +170,7 @@ pub fn base_row(code: Code, args: &RowArgs, n: usize, n_boundary: usize) -> Row 
         cpu: cpu_model(),
         compiled_simd: compiled_simd(),
         runtime_simd: runtime_simd(),
+        settings: args.settings,
         wall_seconds_runs: Vec::new(),
     }
 }
