@@ -886,7 +886,7 @@ impl Simulation {
 
     /// What the pressure force of the stored pressures is scaled by: the lattice's gradient
     /// consistency c for the conjugate-gradient solve, which stores the physical pressure
-    /// c·κ/Δt (see `density_cg::density_solve`); 1 for the Jacobi solve and WCSPH.
+    /// c·κ/Δt (see `pressure::conjugate_gradient`); 1 for the Jacobi solve and WCSPH.
     pub fn pressure_force_scale(&self) -> f32 {
         self.pressure.pressure_force_scale()
     }
