@@ -16,14 +16,17 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
 use dfsph::blocked::Gather;
-use dfsph::boundary::{volumes, wall_volume_correction};
+use dfsph::boundary::{volumes, wall_volume_correction, AkinciWalls, BoundaryModel};
 use dfsph::kernel::CubicSpline;
 use dfsph::neighbors::{Grid, NeighborLists};
 use dfsph::particles::{BoundaryParticles, FluidParticles};
+use dfsph::pressure::jacobi::{self, JacobiScratch};
 use dfsph::scene;
+use dfsph::settings::{SolveLimits, SolverSettings};
 use dfsph::simd::SimdPath;
 use dfsph::simulation::lattice_kernel_sum;
-use dfsph::solver::{self, Neighborhood, PairCache, SolveLimits, SolverScratch};
+use dfsph::solver::{self, Neighborhood, PairCache, Walls};
+use dfsph::step::StepContext;
 use dfsph::{Simulation, Vec2};
 
 /// Everything the passes read, rebuilt through the public API from a running simulation.
@@ -39,6 +42,8 @@ struct State {
     pair_cache: PairCache,
     /// The factor cap the simulation uses.
     max_factor: f32,
+    /// The scene's stopping rules and safeguards.
+    settings: SolverSettings,
 }
 
 impl State {
@@ -49,16 +54,19 @@ impl State {
 
     /// Densities, factors and cached gradients, as at the start of a step.
     fn density_and_factor(&mut self) {
+        let walls = Walls {
+            particles: &self.boundary,
+            lists: &self.boundary_lists,
+            weight: AkinciWalls.gradient_weight(),
+        };
         solver::density_and_factor(
             &self.kernel,
             self.volume,
             &mut self.fluid,
-            &self.boundary,
             &self.fluid_lists,
-            &self.boundary_lists,
+            walls,
             &mut self.pair_cache,
             self.max_factor,
-            solver::AKINCI_WALLS,
         );
     }
 }
@@ -77,6 +85,7 @@ fn state(d: f64, steps: usize) -> State {
     let d = d as f32;
     let volume = 1.0 / lattice_kernel_sum(&kernel, d);
 
+    let settings = SolverSettings::from_scene(&sc);
     let mut boundary_grid = Grid::new(kernel.support());
     // As the simulation sizes it (`Simulation::update_neighborhoods`).
     boundary_grid.set_dense_cells_floor(4 * sim.positions().len());
@@ -116,7 +125,8 @@ fn state(d: f64, steps: usize) -> State {
         fluid_lists,
         boundary_lists,
         pair_cache: PairCache::default(),
-        max_factor: solver::MAX_FACTOR_RATIO * solver::lattice_factor(&kernel, d, volume),
+        max_factor: settings.max_factor_ratio * solver::lattice_factor(&kernel, d, volume),
+        settings,
     };
     s.density_and_factor();
     s
@@ -210,29 +220,32 @@ fn passes(c: &mut Criterion) {
                 b.iter(|| solver::apply_pressure(s.volume, &kappa, &mut vel, &nb))
             });
             for (label, iterations) in [("residual", 0), ("iteration_plus_residual", 1)] {
-                let limits = SolveLimits {
-                    tolerance_pct: 0.0,
-                    max_error_pct: f64::INFINITY,
-                    min_iterations: iterations,
-                    max_iterations: iterations,
+                let settings = SolverSettings {
+                    density: SolveLimits {
+                        tolerance_pct: 0.0,
+                        max_error_pct: f64::INFINITY,
+                        min_iterations: iterations,
+                        max_iterations: iterations,
+                    },
+                    warm_start: false,
+                    ..s.settings.clone()
                 };
-                let mut scratch = SolverScratch::default();
+                let step = StepContext {
+                    kernel: &s.kernel,
+                    volume: s.volume,
+                    spacing: s.spacing(),
+                    dt,
+                    gravity: Vec2::ZERO,
+                    flow_speed: 0.0,
+                    settings: &settings,
+                    nb,
+                    boundary: &s.boundary,
+                };
+                let mut scratch = JacobiScratch::default();
                 g.bench_function(BenchmarkId::new(format!("{label}{suffix}"), name), |b| {
                     b.iter_batched_ref(
                         || s.fluid.clone(),
-                        |fluid| {
-                            solver::density_solve(
-                                s.volume,
-                                dt,
-                                solver::max_compression_correction(dt, s.spacing()),
-                                false,
-                                fluid,
-                                &nb,
-                                limits,
-                                &mut scratch,
-                            )
-                            .iterations
-                        },
+                        |fluid| jacobi::density_solve(&step, fluid, &mut scratch).iterations,
                         BatchSize::LargeInput,
                     )
                 });

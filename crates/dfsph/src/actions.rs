@@ -194,6 +194,7 @@ impl Simulation {
         match scene.validate() {
             Ok(()) => {
                 self.scene = scene;
+                self.resolve_scene();
                 None
             }
             Err(_) => Some(rejection),

@@ -27,7 +27,6 @@
 pub mod actions;
 pub mod blocked;
 pub mod boundary;
-pub(crate) mod density_cg;
 pub mod forces;
 pub mod kernel;
 pub(crate) mod lockstep;
@@ -37,13 +36,18 @@ pub mod packing;
 pub(crate) mod par;
 pub(crate) mod parallel;
 pub mod particles;
+pub mod pressure;
 pub mod probes;
 pub mod recording;
 pub(crate) mod reduce;
+pub(crate) mod retry;
 pub mod scene;
+pub mod settings;
 pub mod simd;
 pub mod simulation;
 pub mod solver;
+pub mod step;
+pub(crate) mod viscosity;
 
 pub use actions::Action;
 pub use glam::Vec2;

@@ -277,11 +277,11 @@ pub fn wall_pressure_at(sim: &Simulation, x: Vec2, normal: Vec2) -> f64 {
     // particle's own pressure once; the mirrored walls of the conjugate-gradient solve feel it
     // twice, plus the hydrostatic part of the ghost pressure, g·(x_b − x_i)
     // (`forces::non_pressure_accelerations`).
-    let (wall_weight, gravity) = if sim.conjugate_gradient() {
-        (crate::solver::MIRRORED_WALLS, sim.gravity())
-    } else {
-        (crate::solver::AKINCI_WALLS, Vec2::ZERO)
-    };
+    let walls = sim.boundary_model();
+    let wall_weight = walls.gradient_weight();
+    let gravity = walls
+        .hydrostatic_ghost_gradient(sim.gravity())
+        .unwrap_or(Vec2::ZERO);
     let mass = sim.particle_mass() as f64;
     let push = pressure_pushes(sim);
     // The wall's particles under the sensor: tank body, behind the face, within a of the

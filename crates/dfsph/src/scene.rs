@@ -110,8 +110,8 @@ pub enum PressureSolve {
     Jacobi,
     /// Preconditioned conjugate gradients with the full previous pressure as the starting
     /// guess, a stopping rule that sees momentum, walls that mirror the fluid's pressure with
-    /// its hydrostatic gradient, and a hydrostatic initial pressure (`density_cg`).
-    /// Water at rest stays at rest.
+    /// its hydrostatic gradient, and a hydrostatic initial pressure
+    /// (`pressure::conjugate_gradient`). Water at rest stays at rest.
     ConjugateGradient,
 }
 
@@ -439,8 +439,8 @@ impl Scene {
 
     /// Fluid blocks may touch, and overlap by less than one particle spacing d along either
     /// axis (their particles then start compressed and are pushed apart, see
-    /// `solver::MAX_CORRECTION_SPEED`). A deeper overlap puts particles on top of each other
-    /// (ten copies of one block made neighbour lists quadratic: 0.5 steps/s at 5,000
+    /// `SolverSettings::max_correction_speed`). A deeper overlap puts particles on top of each
+    /// other (ten copies of one block made neighbour lists quadratic: 0.5 steps/s at 5,000
     /// particles), so it is rejected, naming both blocks. A sweep along x compares each block
     /// only with those still open there.
     fn check_block_overlaps(&self) -> Result<(), SceneError> {

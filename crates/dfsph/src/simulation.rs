@@ -7,15 +7,21 @@ use glam::Vec2;
 use serde::Serialize;
 use std::time::Instant;
 
-use crate::boundary::{self, Body, BodyId, BoundarySamples};
-use crate::density_cg::{self, CgScratch};
-use crate::forces::{self, PointerForce, Viscosity};
+use crate::boundary::{self, Body, BodyId, BoundaryModel, BoundarySamples};
+use crate::forces::{self, PointerForce};
 use crate::kernel::CubicSpline;
 use crate::neighbors::{Grid, NeighborLists};
 use crate::packing;
 use crate::particles::{BoundaryParticles, FluidParticles, Scratch};
+use crate::pressure::{self, PressureSolver, SolveReport};
+use crate::retry::{AttemptCheck, Attempts, DensityStep};
 use crate::scene::{Method, Obstacle, Packing, PressureSolve, Scene, SceneError};
-use crate::solver::{self, Neighborhood, PairCache, SolveLimits, SolveReport, SolverScratch};
+use crate::settings::SolverSettings;
+use crate::solver::{self, Neighborhood, PairCache, Walls};
+use crate::step::StepContext;
+use crate::viscosity::Viscosity;
+
+pub use crate::settings::{MAX_STEP_DISPLACEMENT, PRESSURE_WAVE_STABILITY};
 
 /// Diagnostics of one step.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
@@ -56,7 +62,7 @@ pub struct StepStats {
     /// Times this step was redone with half the time step because the try was unsound (a
     /// density solve at its iteration cap leaving a particle more than 5 % compressed, a
     /// non-finite velocity, or a particle about to jump more than a particle spacing). When
-    /// every try is unsound the least bad is taken. `dt` is the one finally taken.
+    /// every try is unsound the least bad is taken (`retry`). `dt` is the one finally taken.
     pub retries: u32,
 }
 
@@ -79,8 +85,14 @@ pub struct Simulation {
     pub(crate) bodies: Vec<Body>,
     /// γ of [`boundary::wall_volume_correction`].
     wall_gamma: f32,
-    /// Cap on the DFSPH factor ([`solver::MAX_FACTOR_RATIO`] × the lattice factor).
+    /// Cap on the DFSPH factor ([`SolverSettings::max_factor_ratio`] × the lattice factor).
     max_factor: f32,
+    /// The stopping rules and safeguards, resolved from the scene ([`Self::resolve_scene`]).
+    settings: SolverSettings,
+    /// The pressure solver the scene names, with its scratch arrays.
+    pressure: Box<dyn PressureSolver>,
+    /// The viscosity models of the scene.
+    viscosity: Viscosity,
     /// Boundary particles were added or removed: recompute volumes.
     pub(crate) boundary_changed: bool,
     /// The boundary grid was built for the wall positions as they stand and for this many
@@ -92,14 +104,12 @@ pub struct Simulation {
     boundary_lists: NeighborLists,
     pair_cache: PairCache,
     scratch: Scratch,
-    solver_scratch: SolverScratch,
-    cg_scratch: CgScratch,
     pub(crate) time: f64,
     pub(crate) step_count: u64,
     /// Δt of the previous step (the divergence solve measures its error over it).
     last_dt: f32,
     /// Upper bound on Δt after a step had to be redone: the Δt it was accepted at, grown by
-    /// [`RETRY_LIMIT_GROWTH`] per step until the CFL step is the smaller again (infinite
+    /// [`SolverSettings::retry_limit_growth`] per step until the CFL step is the smaller again (infinite
     /// then). It spares the following steps from failing at the same length first.
     retry_dt_limit: f32,
     /// Velocities and pressures after the divergence solve, to redo the rest of a step.
@@ -148,6 +158,7 @@ impl Simulation {
         } else {
             packing::square_gradient_consistency(&kernel, d, volume)
         };
+        let settings = SolverSettings::from_scene(scene);
         let mut sim = Simulation {
             scene: scene.clone(),
             kernel,
@@ -159,7 +170,10 @@ impl Simulation {
             boundary: BoundaryParticles::default(),
             bodies: Vec::new(),
             wall_gamma: boundary::wall_volume_correction(&kernel, d),
-            max_factor: solver::MAX_FACTOR_RATIO * solver::lattice_factor(&kernel, d, volume),
+            max_factor: settings.max_factor_ratio * solver::lattice_factor(&kernel, d, volume),
+            settings,
+            pressure: pressure::for_scene(scene, gradient_consistency),
+            viscosity: Viscosity::from_scene(&scene.viscosity),
             boundary_changed: true,
             boundary_grid_for: None,
             fluid_grid: Grid::new(kernel.support()),
@@ -168,8 +182,6 @@ impl Simulation {
             boundary_lists: NeighborLists::default(),
             pair_cache: PairCache::default(),
             scratch: Scratch::default(),
-            solver_scratch: SolverScratch::default(),
-            cg_scratch: Default::default(),
             time: 0.0,
             step_count: 0,
             last_dt: scene.time_step.max as f32,
@@ -257,11 +269,11 @@ impl Simulation {
             }
         }
         sim.add_boundary_samples(samples);
-        if sim.conjugate_gradient() {
-            // The solve's starting guess for the first step: water at rest then starts in
-            // equilibrium instead of falling into its bottom rows while the pressure builds up.
-            sim.fluid.pressure_over_rho0 =
-                hydrostatic_pressure(&sim.fluid.position, sim.gravity, d);
+        if let Some(p) = sim
+            .pressure
+            .initial_pressure(&sim.fluid.position, sim.gravity, d)
+        {
+            sim.fluid.pressure_over_rho0 = p;
         }
         sim.update_neighborhoods();
         Ok(sim)
@@ -291,6 +303,20 @@ impl Simulation {
             self.boundary.body.push(b);
         }
         self.boundary_changed = true;
+    }
+
+    /// The stopping rules and safeguards, the pressure solver and the viscosity models of the
+    /// scene as it stands: resolved when the simulation is built, and again whenever an action
+    /// changes the scene's parameters.
+    pub(crate) fn resolve_scene(&mut self) {
+        self.settings = SolverSettings::from_scene(&self.scene);
+        self.pressure = pressure::for_scene(&self.scene, self.gradient_consistency);
+        self.viscosity = Viscosity::from_scene(&self.scene.viscosity);
+    }
+
+    /// How the walls take part in the pressure terms (the pressure solver's choice).
+    pub(crate) fn boundary_model(&self) -> &'static dyn BoundaryModel {
+        self.pressure.walls()
     }
 
     /// Whether the density solve is [`PressureSolve::ConjugateGradient`] (with its mirrored,
@@ -334,22 +360,44 @@ impl Simulation {
             .neighbor_lists(&self.fluid.position, true, &mut self.fluid_lists);
         self.boundary_grid
             .neighbor_lists(&self.fluid.position, false, &mut self.boundary_lists);
-        let wall_weight = if self.conjugate_gradient() {
-            solver::MIRRORED_WALLS
-        } else {
-            solver::AKINCI_WALLS
+        let walls = Walls {
+            particles: &self.boundary,
+            lists: &self.boundary_lists,
+            weight: self.pressure.walls().gradient_weight(),
         };
         solver::density_and_factor(
             &self.kernel,
             self.volume,
             &mut self.fluid,
-            &self.boundary,
             &self.fluid_lists,
-            &self.boundary_lists,
+            walls,
             &mut self.pair_cache,
             self.max_factor,
-            wall_weight,
         );
+    }
+
+    /// What the passes of a step of `dt` read, and the fluid and the pressure solver they work
+    /// on.
+    fn step_parts(
+        &mut self,
+        dt: f32,
+    ) -> (
+        StepContext<'_>,
+        &mut FluidParticles,
+        &mut dyn PressureSolver,
+    ) {
+        let step = StepContext {
+            kernel: &self.kernel,
+            volume: self.volume,
+            spacing: self.spacing,
+            dt,
+            gravity: self.gravity,
+            flow_speed: self.stats.max_speed as f32,
+            settings: &self.settings,
+            nb: Neighborhood::new(&self.fluid_lists, &self.boundary_lists, &self.pair_cache),
+            boundary: &self.boundary,
+        };
+        (step, &mut self.fluid, self.pressure.as_mut())
     }
 
     /// Advance by one time step (TVCG 2017, Algorithm 1, arranged so that a step starts from
@@ -381,196 +429,92 @@ impl Simulation {
         &self.stats
     }
 
-    /// [`Self::step`]'s work, on the current thread.
+    /// [`Self::step`]'s work, on the current thread: Algorithm 1 of Bender & Koschier (TVCG
+    /// 2017), its lines 11–14 moved to the start so that a step starts from fresh
+    /// neighbourhoods.
     fn advance(&mut self) {
+        // Lines 11–13: move the walls, sort the fluid by cell, find the neighbourhoods, and
+        // compute the densities ρ_i and the factors α_i.
         self.update_body_motion();
         self.update_neighborhoods();
-        let p = &self.scene.solver;
-        let method = p.method;
-        let warm = p.warm_start;
-        let conjugate_gradient = self.conjugate_gradient();
-        let divergence = p.divergence_solve;
-        let density_limits = SolveLimits {
-            tolerance_pct: p.density_tolerance_pct,
-            max_error_pct: MAX_DENSITY_ERROR_PCT,
-            min_iterations: p.min_iterations,
-            max_iterations: p.max_iterations,
+        // Line 14, Algorithm 2: make the velocity field divergence-free, its error measured
+        // over the previous step.
+        let divergence = if self.settings.divergence_solve {
+            let (step, fluid, pressure) = self.step_parts(self.last_dt);
+            pressure.divergence_solve(&step, fluid)
+        } else {
+            SolveReport::default()
         };
-        let divergence_limits = SolveLimits {
-            tolerance_pct: p.divergence_tolerance_pct,
-            max_error_pct: f64::INFINITY,
-            ..density_limits
-        };
-        let nb = Neighborhood::new(&self.fluid_lists, &self.boundary_lists, &self.pair_cache);
-
-        let mut div_report = SolveReport::default();
-        if method == Method::Dfsph && divergence {
-            div_report = solver::divergence_solve(
-                self.volume,
-                self.last_dt,
-                warm,
-                &mut self.fluid,
-                &nb,
-                divergence_limits,
-                &mut self.solver_scratch,
-            );
-        }
-
-        let v = &self.scene.viscosity;
-        let viscosity = Viscosity {
-            xsph: v.xsph as f32,
-            kinematic: v.kinematic as f32,
-            boundary_kinematic: v.boundary_kinematic as f32,
-        };
-        let min_dt = self.scene.time_step.min as f32;
+        // Line 7: Δt from the CFL condition and the stability bounds, no longer than a
+        // recent retry allows.
         let cfl_dt = self.cfl_time_step();
-        let mut dt = cfl_dt.min(self.retry_dt_limit);
-        let mut retries = 0u32;
-        let mut previous_unseen_pct = f64::INFINITY;
-        // (largest displacement in spacings, Δt) of the least bad unsound attempt.
-        let mut best = (f32::INFINITY, dt);
-        // Set for the last attempt, which is taken whatever its checks say.
-        let mut settle = false;
+        // Lines 6, 8 and 9, Algorithm 3: non-pressure forces, predicted velocities and the
+        // density solve, redone with half the Δt while the step is unsound.
+        let density = self.density_solve_until_sound(cfl_dt.min(self.retry_dt_limit));
+        // Line 10: advect (and move the walls); put back what left the tank.
+        self.advect(density.dt);
+        let (clamped, non_finite) = self.enforce_tank();
+        self.record_statistics(cfl_dt, &density, &divergence, (clamped, non_finite));
+    }
+
+    /// Lines 6, 8 and 9 of Algorithm 1 for a step of `dt`: the non-pressure forces, the
+    /// predicted velocities and the density solve. An unsound attempt is redone from the
+    /// divergence-free velocities with a shorter Δt ([`Attempts`]); the attempt taken is
+    /// returned.
+    fn density_solve_until_sound(&mut self, dt: f32) -> DensityStep {
+        let mut attempts = Attempts::new(dt, self.scene.time_step.min as f32);
         self.retry_velocity.clone_from(&self.fluid.velocity);
         self.retry_pressure
             .clone_from(&self.fluid.pressure_over_rho0);
-        let density_report = loop {
-            forces::non_pressure_accelerations(
-                &self.kernel,
-                self.volume,
-                dt,
-                self.gravity,
-                viscosity,
-                self.pointer,
-                // The walls' ghosts continue the solve's stiffness field, whose slope at rest
-                // is g/c (see `gradient_consistency`).
-                conjugate_gradient.then_some(self.gravity / self.gradient_consistency),
-                &mut self.fluid,
-                &self.boundary,
-                &nb,
-            );
-            self.fluid
-                .velocity
-                .par_iter_mut()
-                .zip(self.fluid.acceleration.par_iter())
-                .with_min_len(LIGHT_PASS_MIN_ITEMS)
-                .for_each(|(v, &a)| *v += dt * a);
-
-            let report = match method {
-                Method::Dfsph if conjugate_gradient => density_cg::density_solve(
-                    self.volume,
+        loop {
+            let dt = attempts.dt;
+            self.predict_velocities(dt);
+            let (step, fluid, pressure) = self.step_parts(dt);
+            let report = pressure.density_solve(&step, fluid);
+            if attempts.is_last()
+                || !attempts.redo(
+                    &AttemptCheck::of(&step, &report, pressure, fluid),
+                    step.settings,
+                )
+            {
+                let retries = attempts.retries;
+                return DensityStep {
                     dt,
-                    self.gradient_consistency,
-                    solver::max_compression_correction(dt, self.spacing),
-                    warm,
-                    &mut self.fluid,
-                    &nb,
-                    density_limits,
-                    density_cg::velocity_tolerance(
-                        p.density_tolerance_pct,
-                        self.spacing,
-                        self.gravity.length(),
-                        dt,
-                        self.stats.max_speed as f32,
-                    ),
-                    &mut self.cg_scratch,
-                ),
-                Method::Dfsph => solver::density_solve(
-                    self.volume,
-                    dt,
-                    solver::max_compression_correction(dt, self.spacing),
-                    warm,
-                    &mut self.fluid,
-                    &nb,
-                    density_limits,
-                    &mut self.solver_scratch,
-                ),
-                Method::Wcsph => solver::wcsph_pressure(
-                    self.volume,
-                    dt,
-                    self.scene.rest_density as f32,
-                    p.wcsph_stiffness as f32,
-                    p.wcsph_exponent as f32,
-                    &mut self.fluid,
-                    &nb,
-                    &mut self.solver_scratch,
-                ),
-            };
-            if settle {
-                break report;
-            }
-            // A solve at its cap that still leaves a particle compressed by more than
-            // RETRY_DENSITY_ERROR_PCT is unsound. A solve that is merely slow to converge (a
-            // deep column building up its pressure) is not: a smaller Δt cannot help it, since
-            // the compression it carries from earlier steps would be corrected over the
-            // shorter step with a proportionally larger velocity.
-            let overcompressed = method == Method::Dfsph
-                && report.iterations >= density_limits.max_iterations
-                && report.max_error_pct > RETRY_DENSITY_ERROR_PCT;
-            // A step whose real positions are much more compressed than the solve's linear
-            // prediction is too long for the linearisation (see
-            // `solver::unseen_compression`). It is redone while halving Δt still helps: a
-            // particle pushed apart to undo compression it already carries moves about as
-            // far in a shorter step (its correction speed grows as Δt shrinks), so its
-            // share does not shrink.
-            let unseen_pct = if method == Method::Dfsph {
-                100.0
-                    * solver::unseen_compression(
-                        &self.kernel,
-                        self.volume,
-                        dt,
-                        &self.fluid,
-                        &self.boundary,
-                        &nb,
-                        if conjugate_gradient {
-                            &self.cg_scratch.rate
-                        } else {
-                            self.solver_scratch.density_rates()
-                        },
-                    ) as f64
-            } else {
-                0.0
-            };
-            let unseen = unseen_pct > MAX_UNSEEN_COMPRESSION_PCT
-                && unseen_pct < UNSEEN_RETRY_GAIN * previous_unseen_pct;
-            previous_unseen_pct = unseen_pct;
-            let displacement = self.max_displacement(dt);
-            if !overcompressed && !unseen && displacement <= MAX_STEP_DISPLACEMENT {
-                break report;
-            }
-            // When every attempt is unsound, the least bad one is taken.
-            if displacement < best.0 {
-                best = (displacement, dt);
-            }
-            // A step that would carry a particle more than MAX_STEP_DISPLACEMENT is redone
-            // below the scene's minimum too, as the displacement bound overrides it: a leak
-            // through a wall is worse than a short step.
-            let floor = if displacement > MAX_STEP_DISPLACEMENT {
-                0.0
-            } else {
-                min_dt
-            };
-            if retries >= MAX_STEP_RETRIES || dt <= floor {
-                if best.1 == dt {
-                    break report;
-                }
-                // Redo the least bad attempt: one more solve on this rare path rather than a
-                // copy of the velocities and pressures of every attempt (12 bytes per
-                // particle, which the 320k benchmark's memory budget does not have).
-                dt = best.1;
-                settle = true;
-            } else {
-                retries += 1;
-                dt = (0.5 * dt).max(floor);
+                    report,
+                    retries,
+                };
             }
             // Redo the step from the divergence-free velocities.
             self.fluid.velocity.clone_from(&self.retry_velocity);
             self.fluid
                 .pressure_over_rho0
                 .clone_from(&self.retry_pressure);
-        };
+        }
+    }
 
-        // Advection.
+    /// Lines 6 and 8 of Algorithm 1: the non-pressure accelerations a (gravity, viscosity,
+    /// the walls' hydrostatic ghosts, the pointer) and the predicted velocities `v* = v + Δt·a`.
+    fn predict_velocities(&mut self, dt: f32) {
+        // The walls' ghosts continue the solve's stiffness field, whose slope at rest is g/c
+        // (see `gradient_consistency`).
+        let ghost_slope = self
+            .pressure
+            .walls()
+            .hydrostatic_ghost_gradient(self.gravity)
+            .map(|g| g / self.gradient_consistency);
+        let (viscosity, pointer) = (self.viscosity, self.pointer);
+        let (step, fluid, _) = self.step_parts(dt);
+        forces::non_pressure_accelerations(&step, &viscosity, pointer, ghost_slope, fluid);
+        fluid
+            .velocity
+            .par_iter_mut()
+            .zip(fluid.acceleration.par_iter())
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
+            .for_each(|(v, &a)| *v += dt * a);
+    }
+
+    /// Line 10 of Algorithm 1: `x += Δt·v`; the walls move with their bodies.
+    fn advect(&mut self, dt: f32) {
         self.fluid
             .position
             .par_iter_mut()
@@ -578,8 +522,19 @@ impl Simulation {
             .with_min_len(LIGHT_PASS_MIN_ITEMS)
             .for_each(|(x, &v)| *x += dt * v);
         self.move_bodies(dt);
-        let (clamped, non_finite) = self.enforce_tank();
+    }
 
+    /// Close the step taken (`density`, after the divergence solve's report `divergence`,
+    /// with `cfl_dt` the CFL step and `(clamped, non_finite)` what [`Self::enforce_tank`] put
+    /// back): advance the clock, relax the bound a retry set on Δt, and fill [`StepStats`].
+    fn record_statistics(
+        &mut self,
+        cfl_dt: f32,
+        density: &DensityStep,
+        divergence: &SolveReport,
+        (clamped, non_finite): (u32, u32),
+    ) {
+        let dt = density.dt;
         let avg_neighbors = if self.fluid.is_empty() {
             0.0
         } else {
@@ -589,12 +544,13 @@ impl Simulation {
         self.time += dt as f64;
         self.step_count += 1;
         self.last_dt = dt;
-        self.retry_dt_limit = if retries > 0 {
+        let growth = self.settings.retry_limit_growth;
+        self.retry_dt_limit = if density.retries > 0 {
             dt
-        } else if self.retry_dt_limit * RETRY_LIMIT_GROWTH >= cfl_dt {
+        } else if self.retry_dt_limit * growth >= cfl_dt {
             f32::INFINITY
         } else {
-            self.retry_dt_limit * RETRY_LIMIT_GROWTH
+            self.retry_dt_limit * growth
         };
         self.total_clamped += clamped as u64;
         self.total_non_finite += non_finite as u64;
@@ -605,39 +561,18 @@ impl Simulation {
             dt: dt as f64,
             n_fluid: self.fluid.len(),
             n_boundary: self.boundary.len(),
-            density_iterations: density_report.iterations,
-            divergence_iterations: div_report.iterations,
-            avg_density_error_pct: density_report.avg_error_pct,
-            max_density_error_pct: density_report.max_error_pct,
-            divergence_error_pct: div_report.avg_error_pct,
+            density_iterations: density.report.iterations,
+            divergence_iterations: divergence.iterations,
+            avg_density_error_pct: density.report.avg_error_pct,
+            max_density_error_pct: density.report.max_error_pct,
+            divergence_error_pct: divergence.avg_error_pct,
             max_speed,
             kinetic_energy,
             clamped,
             non_finite,
             avg_neighbors,
-            retries,
+            retries: density.retries,
         };
-    }
-
-    /// The largest distance a particle would move in a step of `dt`, in particle spacings
-    /// (infinite for a non-finite velocity). CFL keeps a normal step at a fraction of a
-    /// spacing; more than [`MAX_STEP_DISPLACEMENT`] means the pressure solve produced a kick
-    /// the step size cannot carry.
-    fn max_displacement(&self, dt: f32) -> f32 {
-        let max2 = self
-            .fluid
-            .velocity
-            .par_iter()
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .map(|v| {
-                if v.is_finite() {
-                    v.length_squared()
-                } else {
-                    f32::INFINITY
-                }
-            })
-            .reduce(|| 0.0, f32::max);
-        max2.sqrt() * dt / self.spacing
     }
 
     /// The Δt the next step starts from: the CFL step and its bounds (gravity, the
@@ -646,7 +581,7 @@ impl Simulation {
         self.cfl_time_step()
     }
 
-    /// The pressure's bound on Δt, `PRESSURE_WAVE_STABILITY·d/√(|g|·D)`, D the fluid's extent
+    /// The pressure's bound on Δt, `pressure_wave_stability·d/√(|g|·D)`, D the fluid's extent
     /// along gravity: the hydrostatic pressure at the bottom of the deepest water there can
     /// be. It stays put while water rests. A bound on the solved pressure's maximum followed
     /// its jitter of a few percent from step to step, and a column at rest under a Δt that
@@ -673,7 +608,7 @@ impl Simulation {
                 |a, b| (a.0.min(b.0), a.1.max(b.1)),
             );
         let extent = (hi - lo).max(0.0) + self.spacing;
-        PRESSURE_WAVE_STABILITY * self.spacing / (g * extent).sqrt()
+        self.settings.pressure_wave_stability * self.spacing / (g * extent).sqrt()
     }
 
     /// CFL condition `Δt = λ·d / v_max` (v_max includes moving walls; WCSPH adds the speed of
@@ -696,9 +631,8 @@ impl Simulation {
             .map(|b| b.velocity.length())
             .fold(0.0, f32::max);
         let mut v_max = fluid_max.max(wall_max);
-        if self.scene.solver.method == Method::Wcsph {
-            let s = &self.scene.solver;
-            v_max += (s.wcsph_exponent * s.wcsph_stiffness / self.scene.rest_density).sqrt() as f32;
+        if let Some(sound) = self.pressure.sound_speed() {
+            v_max += sound;
         }
         let mut dt = if v_max > 0.0 {
             ts.cfl as f32 * self.spacing / v_max
@@ -712,18 +646,12 @@ impl Simulation {
         if g > 0.0 {
             dt = dt.min((ts.cfl as f32 * self.spacing / g).sqrt());
         }
-        // The explicit Laplacian viscosity is stable only below VISCOUS_STABILITY·h²/ν
-        // (Morris et al. 1997, eq. 34, h the smoothing length, our spacing d). This bound
-        // beats the scene's minimum Δt: a step below the minimum is slow, one above the
+        // The explicit viscosity is stable only below a bound (`viscosity::Laplacian`). This
+        // bound beats the scene's minimum Δt: a step below the minimum is slow, one above the
         // bound blows up.
-        let v = &self.scene.viscosity;
-        let nu = v.kinematic.max(v.boundary_kinematic) as f32;
-        let upper = if nu > 0.0 {
-            (ts.max as f32).min(VISCOUS_STABILITY * self.spacing * self.spacing / nu)
-        } else {
-            ts.max as f32
-        }
-        .min(self.pressure_wave_time_step());
+        let upper = (ts.max as f32)
+            .min(self.viscosity.max_time_step(self.spacing, &self.settings))
+            .min(self.pressure_wave_time_step());
         // No step may carry water through a wall: the distance a particle travels in it under
         // the step's accelerations, |v|·Δt + ½|a|·Δt², stays within MAX_STEP_DISPLACEMENT·d
         // ([`step_displacement_bound`]). Like the viscous bound it beats the scene's minimum
@@ -958,13 +886,9 @@ impl Simulation {
 
     /// What the pressure force of the stored pressures is scaled by: the lattice's gradient
     /// consistency c for the conjugate-gradient solve, which stores the physical pressure
-    /// c·κ/Δt (see `density_cg::density_solve`); 1 for the Jacobi solve and WCSPH.
+    /// c·κ/Δt (see `pressure::conjugate_gradient`); 1 for the Jacobi solve and WCSPH.
     pub fn pressure_force_scale(&self) -> f32 {
-        if self.conjugate_gradient() {
-            1.0 / self.gradient_consistency
-        } else {
-            1.0
-        }
+        self.pressure.pressure_force_scale()
     }
 
     /// Boundary particle positions, m.
@@ -1060,50 +984,6 @@ impl Simulation {
         count.saturating_sub(1)
     }
 }
-
-/// The density solve iterates until no particle is compressed by more than this, percent,
-/// besides meeting the scene's average tolerance.
-pub const MAX_DENSITY_ERROR_PCT: f64 = 1.0;
-
-/// Largest Δt·ν/d² of the explicit Laplacian viscosity (Morris et al. 1997: Δt ≤ 0.125 h²/ν).
-/// Without it a tank at rest with ν = 0.1 m²/s, d = 2 cm and Δt = 2.5 ms (five times over)
-/// reached 16 m/s within 50 steps.
-pub const VISCOUS_STABILITY: f32 = 0.125;
-
-/// Largest Δt·√(p/ρ0)/d, p the hydrostatic pressure at the bottom of the water. Against the
-/// pressure of a deep column the symmetric pressure force is a stiff spring on each particle's
-/// place in the lattice (its pull grows with p, not with the pressure's gradient), integrated
-/// explicitly like any spring: the 400-layer column of `a_deep_narrow_column_stays_at_rest`
-/// burst at Δt·√(gH)/d = 0.89 and held still at 0.66, at d = 5 mm and at d = 1 cm alike
-/// (docs/deep-columns.md). 0.6 leaves a margin of 1.5; flows rarely meet it, as their CFL
-/// step is shorter.
-pub const PRESSURE_WAVE_STABILITY: f32 = 0.6;
-
-/// How often one step may be redone with half the time step before it is taken as it is.
-pub const MAX_STEP_RETRIES: u32 = 4;
-/// After a step was redone, each following step may be this much longer than the one before
-/// until the CFL step takes over again.
-pub const RETRY_LIMIT_GROWTH: f32 = 1.2;
-/// A step that would leave a particle compressed by more than this, percent, beyond what the
-/// density solve predicted is redone with half the Δt (see `solver::unseen_compression`).
-/// The same bound as [`MAX_DENSITY_ERROR_PCT`]: the solve's promise must hold for the
-/// positions the step really produces.
-pub const MAX_UNSEEN_COMPRESSION_PCT: f64 = MAX_DENSITY_ERROR_PCT;
-/// A step is redone for its unseen compression only while each halving of Δt cuts it below
-/// this share of the attempt before (a purely second-order error would fall to a quarter).
-/// In the 80k dam break at Δt = 5 ms: 2.92 % at 2.5 ms, 1.92 % at 1.25 ms, then 1.64, 1.44
-/// and 1.35 % down to 0.16 ms: the later halvings only cost solves.
-pub const UNSEEN_RETRY_GAIN: f64 = 0.75;
-/// A density solve that reaches its iteration cap with a particle compressed by more than
-/// this, percent, makes the step unsound (it is redone with half the Δt).
-pub const RETRY_DENSITY_ERROR_PCT: f64 = 5.0;
-/// Largest displacement in one step, in particle spacings, before the step is redone. Fluid
-/// at rest sits d/2 inside the tank, and the wall's first layer d/2 outside: a step longer
-/// than d/2 can carry a particle from next to the wall into the wall. At 1 d, `dfsph2d stress
-/// --seed 0` leaked at step 5,202 (a particle thrown into the floor at 19 m/s, 0.69 d in its
-/// last step); at d/2 it passes 20,000 steps. Normal flows rarely come near it (one retry in
-/// 1.5 s of the default dam break, none in the 5k benchmark).
-pub const MAX_STEP_DISPLACEMENT: f32 = 0.5;
 
 /// The longest Δt in which a particle moving at `speed` (m/s) under an `acceleration` (m/s²)
 /// travels at most [`MAX_STEP_DISPLACEMENT`] particle spacings (`spacing` = d, m):

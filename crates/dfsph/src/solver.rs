@@ -1,5 +1,5 @@
-//! Pressure solvers: DFSPH (Bender & Koschier 2015; TVCG 2017, Algorithms 2 and 3) and the
-//! WCSPH baseline (Becker & Teschner 2007).
+//! The quantities of DFSPH (Bender & Koschier 2015; TVCG 2017) that a step's pressure solves
+//! share.
 //!
 //! Notation. Everything is written with particle volumes V_j = m_j/ρ0 and relative densities
 //! s_i = ρ_i/ρ0, which keeps the numbers near 1 in single precision:
@@ -12,24 +12,19 @@
 //!   of Akinci et al. 2012, eq. 10: the wall feels the particle's own pressure once);
 //!   κ = Δt·p/ρ0 for a pressure p.
 //!
-//! The density solve drives the predicted relative density `s*_i = s_i + Δt·Dρ_i/Dt/ρ0` to 1
-//! with `Δκ_i = max(s*_i − 1, 0)·a_i/Δt` (only compression is corrected: the free surface
-//! must not be pulled together); the divergence solve drives `Dρ_i/Dt` to 0 with
-//! `Δκ_i = max(Dρ_i/Dt/ρ0, 0)·a_i`. Both are Jacobi iterations over the same two passes.
-
-use std::ops::Range;
+//! This module holds what every pressure solver ([`crate::pressure`]) works on: the densities
+//! and factors of a step with the kernel gradients and sums they cache ([`PairCache`],
+//! [`Neighborhood`]), the two operators of the pressure terms ([`density_rates`] and
+//! [`apply_pressure`]), and the check of a step's linearisation ([`unseen_compression`]).
 
 use crate::par::prelude::*;
 use glam::Vec2;
-
-use crate::lockstep::{self, Shared};
-use crate::parallel::LIGHT_PASS_MIN_ITEMS;
 
 use crate::blocked::{BlockedPairs, ResidualTerms, LANES};
 use crate::kernel::CubicSpline;
 use crate::neighbors::NeighborLists;
 use crate::particles::{BoundaryParticles, FluidParticles};
-use crate::reduce;
+use crate::step::StepContext;
 
 /// What [`density_and_factor`] caches for the rest of a step, valid while positions do not
 /// change.
@@ -49,6 +44,7 @@ pub struct PairCache {
 
 /// Read-only view of one step's neighbourhoods: lists and the kernel gradients cached for
 /// every pair, valid while positions do not change.
+#[derive(Clone, Copy)]
 pub struct Neighborhood<'a> {
     /// Fluid–fluid lists (self excluded); their `∇W_ij` are in `blocks`.
     pub fluid: &'a NeighborLists,
@@ -83,22 +79,24 @@ impl<'a> Neighborhood<'a> {
 /// Compute `s_i`, the DFSPH factor, and cache all kernel gradients and the per-particle sums
 /// of [`PairCache`] (TVCG 2017, Alg. 1 lines 2–3).
 ///
-/// `wall_weight` multiplies the walls' share of the gradient sum and of the wall flux, not of
-/// the density: 1 is Akinci et al.'s wall term ([`AKINCI_WALLS`]), 2 mirrors the fluid into the
-/// wall ([`MIRRORED_WALLS`]). The gradient sum serves the density rate, the pressure push and
-/// the factor alike, so either weight keeps the pressure operator symmetric.
-#[allow(clippy::too_many_arguments)]
+/// `walls.weight` multiplies the walls' share of the gradient sum and of the wall flux, not of
+/// the density ([`BoundaryModel::gradient_weight`](crate::boundary::BoundaryModel)). Each
+/// particle's factor is at most `max_factor` (m², see
+/// [`SolverSettings::max_factor_ratio`](crate::settings::SolverSettings::max_factor_ratio)).
 pub fn density_and_factor(
     kernel: &CubicSpline,
     volume: f32,
     fluid: &mut FluidParticles,
-    boundary: &BoundaryParticles,
     fluid_lists: &NeighborLists,
-    boundary_lists: &NeighborLists,
+    walls: Walls,
     cache: &mut PairCache,
     max_factor: f32,
-    wall_weight: f32,
 ) {
+    let Walls {
+        particles: boundary,
+        lists: boundary_lists,
+        weight: wall_weight,
+    } = walls;
     let n = fluid.len();
     cache.blocks.prepare(fluid_lists);
     cache
@@ -167,17 +165,16 @@ pub fn density_and_factor(
         });
 }
 
-/// Akinci et al. (2012)'s wall term: a wall particle feels the fluid particle's own pressure
-/// once, `Δv_i = −κ_i Σ_b Ψ_b ∇W_ib`.
-pub const AKINCI_WALLS: f32 = 1.0;
-
-/// Walls that mirror the fluid: the wall's share of the density is the mirrored fluid's
-/// (`Σ_b Ψ_b W_ib`), and its derivative, since the mirror image moves with the particle,
-/// counts twice, in the density rate, the pressure push (`p_b = p_i`: `κ_i + κ_b = 2κ_i`) and
-/// the factor. With it a particle next to a wall controls its own distance to the wall; with
-/// [`AKINCI_WALLS`] a particle on the lattice next to a wall does not (its gradient sums cancel,
-/// docs/deep-columns.md) and the fluid's pressure pushes it into the wall.
-pub const MIRRORED_WALLS: f32 = 2.0;
+/// The walls as [`density_and_factor`] sees them.
+#[derive(Clone, Copy)]
+pub struct Walls<'a> {
+    /// The wall particles.
+    pub particles: &'a BoundaryParticles,
+    /// Each fluid particle's wall neighbours.
+    pub lists: &'a NeighborLists,
+    /// The boundary model's [`gradient_weight`](crate::boundary::BoundaryModel::gradient_weight).
+    pub weight: f32,
+}
 
 /// The DFSPH factor of a particle inside an ideal square lattice of spacing `d` (its gradient
 /// sum vanishes by symmetry): `1 / Σ_k |V ∇W(x_k)|²`.
@@ -192,15 +189,6 @@ pub fn lattice_factor(kernel: &CubicSpline, d: f32, volume: f32) -> f32 {
     }
     (1.0 / sum) as f32
 }
-
-/// A particle's factor is capped at this multiple of [`lattice_factor`]. Particles with a full
-/// or a free-surface neighbourhood stay below about 2.5 times it. A droplet with one or two
-/// fluid neighbours pressed into a wall does not: it sits almost on top of a wall particle,
-/// where ∇W vanishes, its boundary gradients nearly cancel, and its factor grows without bound
-/// (200 times the lattice value was seen in `dfsph2d stress`), so that the wall's few percent of
-/// extra density became a kick of thousands of m/s. With the cap such a particle is pushed out
-/// over a few iterations instead of one.
-pub const MAX_FACTOR_RATIO: f32 = 4.0;
 
 /// Particles per parallel work item of [`density_and_factor`].
 const PAIR_CHUNK: usize = 512;
@@ -223,7 +211,8 @@ fn split_by_chunk<'a, T>(values: &'a mut [T], lists: &NeighborLists) -> Vec<&'a 
 /// Relative rates of density change `Dρ_i/Dt / ρ0 = Σ_j V_j (v_i − v_j)·∇W_ij +
 /// Σ_b Ψ_b (v_i − v_b)·∇W_ib` (continuity equation, TVCG 2017 eq. 7), in 1/s, of every fluid
 /// particle at the velocities `vel`: one residual pass ([`BlockedPairs::residual_block`]) with
-/// no source and no increment. (A solve leaves these in [`SolverScratch::density_rates`].)
+/// no source and no increment. (A solve leaves these in
+/// `PressureSolver::density_rates`.)
 pub fn density_rates(volume: f32, vel: &[Vec2], nb: &Neighborhood) -> Vec<f32> {
     let n = vel.len();
     let (zeros, mut unused) = (vec![0.0f32; n], vec![0.0f32; n]);
@@ -280,400 +269,6 @@ pub fn apply_pressure(volume: f32, kappa: &[f32], vel: &mut [Vec2], nb: &Neighbo
     });
 }
 
-/// Outcome of one solve.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct SolveReport {
-    pub iterations: u32,
-    /// Average error at exit, percent.
-    pub avg_error_pct: f64,
-    /// Largest single-particle error at exit, percent.
-    pub max_error_pct: f64,
-}
-
-/// Settings shared by both solves.
-#[derive(Clone, Copy, Debug)]
-pub struct SolveLimits {
-    pub tolerance_pct: f64,
-    /// Largest single-particle error accepted at exit, percent. The average alone lets a
-    /// local hot spot through: ten particles 3 % compressed move the average of 20,000 by
-    /// 0.0015 %, and such a spot, left for the next step, grows.
-    pub max_error_pct: f64,
-    pub min_iterations: u32,
-    pub max_iterations: u32,
-}
-
-/// Scratch arrays of the Jacobi iterations.
-#[derive(Default, Clone, Debug)]
-pub struct SolverScratch {
-    /// Per-particle stiffness increment of the current iteration.
-    delta: Vec<f32>,
-    /// The increment applied last, to take an iteration back.
-    previous_delta: Vec<f32>,
-    /// Per particle, the residual's part that does not depend on the velocities
-    /// ([`ResidualTerms::source`]).
-    source: Vec<f32>,
-    /// Per particle, the relative density rate at the current velocities, written by each
-    /// residual pass.
-    rate: Vec<f32>,
-    /// The rates before the increment applied last, to take an iteration back.
-    previous_rate: Vec<f32>,
-}
-
-impl SolverScratch {
-    /// Per fluid particle, the relative rate of density change `Dρ_i/Dt/ρ0` (TVCG 2017 eq. 7,
-    /// see [`ResidualTerms`]) at the velocities the last Jacobi solve left. The density
-    /// solve's linearisation check ([`unseen_compression`]) reads them here rather than
-    /// walking every neighbour list again.
-    pub fn density_rates(&self) -> &[f32] {
-        &self.rate
-    }
-}
-
-/// The Jacobi iteration shared by the density and divergence solves: compute every residual
-/// `e_i = max(source_i + rate_scale·Dρ_i/Dt/ρ0, 0)` ([`ResidualTerms`], `source` taken from
-/// `scratch.source`), stop when their average (in percent, after `to_pct`) is within
-/// tolerance, else turn them into stiffness increments `Δκ_i = e_i·a_i·increment_scale`,
-/// apply them, and accumulate them into `total`.
-///
-/// Only compression is corrected: residuals are clamped at zero, so within one solve a
-/// particle's stiffness only grows. What a previous step left too high is not taken back here;
-/// the warm start keeps only part of it (see [`warm_factor`]).
-///
-/// The whole iteration runs in one [`lockstep`] region: each worker starts every pass on
-/// the same share of parts, takes what the other has not reached when its own is done, and
-/// the workers meet at a barrier between passes, instead of one rayon fork-join per pass
-/// (docs/PERFORMANCE.md has the measurements).
-#[allow(clippy::too_many_arguments)]
-fn jacobi_solve(
-    volume: f32,
-    fluid: &mut FluidParticles,
-    nb: &Neighborhood,
-    limits: SolveLimits,
-    scratch: &mut SolverScratch,
-    rate_scale: f32,
-    to_pct: f64,
-    increment_scale: f32,
-    total: &mut [f32],
-) -> SolveReport {
-    let n = fluid.len();
-    for v in [
-        &mut scratch.delta,
-        &mut scratch.previous_delta,
-        &mut scratch.rate,
-        &mut scratch.previous_rate,
-    ] {
-        v.resize(n, 0.0);
-    }
-    if n == 0 {
-        return SolveReport::default();
-    }
-    let terms = ResidualTerms {
-        volume,
-        grad_sum: nb.grad_sum,
-        wall_flux: nb.wall_flux,
-        source: &scratch.source,
-        rate_scale,
-        factor: &fluid.factor,
-        increment_scale,
-    };
-    // The residual sum decides when to stop, so it is taken in an order that does not
-    // depend on the work split (`reduce`): per part of `blocks_per_part` blocks, then the
-    // parts in order.
-    let blocks = n.div_ceil(LANES);
-    let blocks_per_part = reduce::part_units(blocks, 16);
-    let parts = blocks.div_ceil(blocks_per_part);
-    let mut part_sums = [(0.0, 0.0); reduce::MAX_PARTS];
-    let part_sums = Shared::new(&mut part_sums[..parts]);
-    let velocity = Shared::new(&mut fluid.velocity);
-    let total = Shared::new(total);
-    // Two increment buffers and two rate buffers: the residual pass writes the next into
-    // one while the other keeps the increment applied last, to take an iteration back.
-    let increments = [
-        Shared::new(&mut scratch.delta),
-        Shared::new(&mut scratch.previous_delta),
-    ];
-    let rates = [
-        Shared::new(&mut scratch.rate),
-        Shared::new(&mut scratch.previous_rate),
-    ];
-    // Part `p`'s blocks and particles.
-    let part = |p: usize| -> (Range<usize>, Range<usize>) {
-        let part_blocks = p * blocks_per_part..((p + 1) * blocks_per_part).min(blocks);
-        let items = part_blocks.start * LANES..(part_blocks.end * LANES).min(n);
-        (part_blocks, items)
-    };
-
-    let outcomes = lockstep::run(|team| {
-        // Shares cut at part bounds, balanced by neighbour slots.
-        let my_parts = team.share(parts, |p| {
-            nb.blocks.slots_before((p * blocks_per_part).min(blocks)) as u64
-        });
-
-        // The residuals at the current velocities, part by part, written into
-        // `increments[buffer]` and `rates[buffer]` with the next increments; then, after the
-        // barrier, the average and largest residual over all parts (every worker takes the
-        // same sum in the same order, so all decide alike).
-        let residuals = |buffer: usize| -> (f64, f64) {
-            // SAFETY: in this pass the velocities are only read; each part's items and sum
-            // are written by the one worker that took the part; the barrier below ends the
-            // pass.
-            let vel = unsafe { velocity.read() };
-            for p in team.parts(my_parts.clone()) {
-                let (part_blocks, items) = part(p);
-                let (d, r, sum) = unsafe {
-                    (
-                        increments[buffer].part_mut(items.clone()),
-                        rates[buffer].part_mut(items),
-                        &mut part_sums.part_mut(p..p + 1)[0],
-                    )
-                };
-                // The residuals of a few blocks at a time, summed together.
-                const GROUP: usize = reduce::BLOCKS_TOGETHER;
-                let mut errors = [[0.0f32; LANES]; GROUP];
-                let mut acc = (0.0, 0.0);
-                let groups = d.chunks_mut(GROUP * LANES).zip(r.chunks_mut(GROUP * LANES));
-                for (g, (d, r)) in groups.enumerate() {
-                    let count = d.len().div_ceil(LANES);
-                    let first = part_blocks.start + g * GROUP;
-                    let e = &mut errors[..count];
-                    nb.blocks
-                        .residual_blocks(first..first + count, vel, &terms, d, r, e);
-                    acc = reduce::fold_block_sums(acc, &errors, count);
-                }
-                *sum = acc;
-            }
-            team.wait();
-            // SAFETY: the part sums are written only in the residual pass, which every
-            // worker has finished; the next one starts after another barrier.
-            let (sum, max) = unsafe { part_sums.read() }
-                .iter()
-                .copied()
-                .fold((0.0, 0.0), reduce::add_sum_max);
-            (sum / n as f64 * to_pct, max * to_pct)
-        };
-        // Apply the increments in `increments[buffer]` to the velocities and add them to the
-        // running totals, part by part.
-        let apply = |buffer: usize| {
-            // SAFETY: in this pass the increments are only read; each part's velocities and
-            // totals are written by the one worker that took the part; the barrier below
-            // ends the pass.
-            let kappa = unsafe { increments[buffer].read() };
-            for p in team.parts(my_parts.clone()) {
-                let (part_blocks, items) = part(p);
-                let (vel, sum) =
-                    unsafe { (velocity.part_mut(items.clone()), total.part_mut(items)) };
-                nb.blocks
-                    .apply_blocks(part_blocks, volume, kappa, nb.grad_sum, vel, Some(sum));
-            }
-            team.wait();
-        };
-
-        let mut current = 0;
-        let mut rates_current = 0;
-        let (mut avg, mut max) = residuals(current);
-        let mut iterations = 0;
-        while (avg > limits.tolerance_pct
-            || max > limits.max_error_pct
-            || iterations < limits.min_iterations)
-            && iterations < limits.max_iterations
-        {
-            apply(current);
-            current = 1 - current;
-            rates_current = current;
-            let previous = (avg, max);
-            (avg, max) = residuals(current);
-            iterations += 1;
-            if avg.is_nan() || avg > DIVERGING_ERROR_GROWTH * previous.0 + limits.tolerance_pct {
-                // Jacobi is not guaranteed to converge (dense clusters, e.g. fluid pulled
-                // into a point): an iteration that makes the error grow is taken back and
-                // the solve stops, rather than feeding the growth into the velocities.
-                let applied = 1 - current;
-                for p in team.parts(my_parts.clone()) {
-                    let (_, items) = part(p);
-                    // SAFETY: each part is negated by the worker that took it; the barrier
-                    // orders this before the pass that reads the increments.
-                    unsafe { increments[applied].part_mut(items) }
-                        .iter_mut()
-                        .for_each(|d| *d = -*d);
-                }
-                team.wait();
-                apply(applied);
-                // The velocities are back where the previous pass read them.
-                rates_current = applied;
-                (avg, max) = previous;
-                break;
-            }
-        }
-        (
-            SolveReport {
-                iterations,
-                avg_error_pct: avg,
-                max_error_pct: max,
-            },
-            current,
-            rates_current,
-        )
-    });
-    let (report, current, rates_current) = outcomes[0];
-    // The next increment and the current rates go back where the callers look for them.
-    if current == 1 {
-        std::mem::swap(&mut scratch.delta, &mut scratch.previous_delta);
-    }
-    if rates_current == 1 {
-        std::mem::swap(&mut scratch.rate, &mut scratch.previous_rate);
-    }
-    report
-}
-
-/// Divergence solve (TVCG 2017, Algorithm 2): make `Dρ/Dt = 0` so the velocity field is
-/// divergence-free. The error is the average relative density change over one step, `dt`.
-/// With `warm_start`, the previous step's κᵛ is applied first.
-#[allow(clippy::too_many_arguments)]
-pub fn divergence_solve(
-    volume: f32,
-    dt: f32,
-    warm_start: bool,
-    fluid: &mut FluidParticles,
-    nb: &Neighborhood,
-    limits: SolveLimits,
-    scratch: &mut SolverScratch,
-) -> SolveReport {
-    let mut total = std::mem::take(&mut fluid.divergence_stiffness);
-    if warm_start {
-        let w = warm_factor();
-        total
-            .par_iter_mut()
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .for_each(|k| *k = k.max(0.0) * w);
-        apply_pressure(volume, &total, &mut fluid.velocity, nb);
-    } else {
-        total.iter_mut().for_each(|k| *k = 0.0);
-    }
-    // Particles with too few neighbours for a meaningful rate are left out: their residual
-    // is max(−∞ + rate, 0) = 0.
-    scratch.source.resize(fluid.len(), 0.0);
-    scratch
-        .source
-        .par_iter_mut()
-        .with_min_len(LIGHT_PASS_MIN_ITEMS)
-        .enumerate()
-        .for_each(|(i, s)| {
-            let neighbors = nb.fluid.range(i).len() + nb.boundary.range(i).len();
-            *s = if neighbors < MIN_NEIGHBORS_DIVERGENCE {
-                f32::NEG_INFINITY
-            } else {
-                0.0
-            };
-        });
-    let report = jacobi_solve(
-        volume,
-        fluid,
-        nb,
-        limits,
-        scratch,
-        1.0,
-        dt as f64 * 100.0,
-        1.0,
-        &mut total,
-    );
-    fluid.divergence_stiffness = total;
-    report
-}
-
-/// Density solve (TVCG 2017, Algorithm 3): correct the predicted velocities so that the
-/// predicted density `s_i + Δt·Dρ_i/Dt/ρ0` is 1 wherever the fluid is compressed. Afterwards
-/// `fluid.pressure_over_rho0` holds p/ρ0 of the step, used as the next warm start.
-///
-/// At most `max_correction` of a particle's existing compression `s_i − 1` is removed in this
-/// step (see [`max_compression_correction`]); the rest waits for the next steps.
-#[allow(clippy::too_many_arguments)]
-pub fn density_solve(
-    volume: f32,
-    dt: f32,
-    max_correction: f32,
-    warm_start: bool,
-    fluid: &mut FluidParticles,
-    nb: &Neighborhood,
-    limits: SolveLimits,
-    scratch: &mut SolverScratch,
-) -> SolveReport {
-    // κ = Δt·p/ρ0; the stored pressure does not depend on Δt, so it carries over when Δt
-    // changes.
-    let mut total = std::mem::take(&mut fluid.pressure_over_rho0);
-    if warm_start {
-        let w = warm_factor();
-        total
-            .par_iter_mut()
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .for_each(|p| *p = p.max(0.0) * dt * w);
-        apply_pressure(volume, &total, &mut fluid.velocity, nb);
-    } else {
-        total.iter_mut().for_each(|k| *k = 0.0);
-    }
-    scratch.source.resize(fluid.len(), 0.0);
-    scratch
-        .source
-        .par_iter_mut()
-        .zip(fluid.density_ratio.par_iter())
-        .with_min_len(LIGHT_PASS_MIN_ITEMS)
-        .for_each(|(s, &density)| *s = (density - 1.0).min(max_correction));
-    let report = jacobi_solve(
-        volume,
-        fluid,
-        nb,
-        limits,
-        scratch,
-        dt,
-        100.0,
-        1.0 / dt,
-        &mut total,
-    );
-    total
-        .par_iter_mut()
-        .with_min_len(LIGHT_PASS_MIN_ITEMS)
-        .for_each(|k| *k /= dt);
-    fluid.pressure_over_rho0 = total;
-    report
-}
-
-/// WCSPH: pressure from the Tait equation `p = B·((ρ/ρ0)^γ − 1)` (clamped at 0 so the free
-/// surface is not pulled together) and the symmetric pressure acceleration
-/// `a_i = −Σ_j m_j (p_i/ρ_i² + p_j/ρ_j²) ∇W_ij − Σ_b ρ0 Ψ_b p_i/ρ_i² ∇W_ib` (Akinci et al.
-/// 2012), applied to the
-/// velocities over `dt`. Returns the average and maximum compression in percent.
-#[allow(clippy::too_many_arguments)]
-pub fn wcsph_pressure(
-    volume: f32,
-    dt: f32,
-    rest_density: f32,
-    stiffness: f32,
-    exponent: f32,
-    fluid: &mut FluidParticles,
-    nb: &Neighborhood,
-    scratch: &mut SolverScratch,
-) -> SolveReport {
-    let n = fluid.len();
-    scratch.delta.resize(n, 0.0);
-    fluid
-        .pressure_over_rho0
-        .par_iter_mut()
-        .zip(scratch.delta.par_iter_mut())
-        .zip(fluid.density_ratio.par_iter())
-        .for_each(|((p, k), &s)| {
-            let pressure = (stiffness * (s.powf(exponent) - 1.0)).max(0.0);
-            *p = pressure / rest_density;
-            // In the κ form: m_j p/ρ² = V_j ρ0 p/(ρ0 s)² = V_j (p/ρ0)/s², times Δt.
-            *k = dt * *p / (s * s);
-        });
-    apply_pressure(volume, &scratch.delta, &mut fluid.velocity, nb);
-    let (sum, max) = reduce::sum_and_max(&fluid.density_ratio, |&s| (s - 1.0).max(0.0) as f64);
-    SolveReport {
-        iterations: 0,
-        avg_error_pct: if n > 0 { sum / n as f64 * 100.0 } else { 0.0 },
-        max_error_pct: max * 100.0,
-    }
-}
-
 /// The compression a step of `dt` with the current velocities creates that the density
 /// solve could not see: the largest `min(s̃_i − ŝ_i, s̃_i − 1)` over particles where both are
 /// positive, as a fraction of ρ0 (0 if there is none).
@@ -691,16 +286,10 @@ pub fn wcsph_pressure(
 /// with a shorter Δt.
 ///
 /// `rates` are the particles' `Dρ_i/Dt/ρ0` at the current velocities ([`density_rates`], or
-/// what the density solve left in [`SolverScratch::density_rates`]).
-pub fn unseen_compression(
-    kernel: &CubicSpline,
-    volume: f32,
-    dt: f32,
-    fluid: &FluidParticles,
-    boundary: &BoundaryParticles,
-    nb: &Neighborhood,
-    rates: &[f32],
-) -> f32 {
+/// what the density solve left, `PressureSolver::density_rates`), `dt` is `step.dt`.
+pub fn unseen_compression(step: &StepContext, fluid: &FluidParticles, rates: &[f32]) -> f32 {
+    let (kernel, volume, dt, nb) = (step.kernel, step.volume, step.dt, &step.nb);
+    let boundary = step.boundary;
     assert_eq!(
         rates.len(),
         fluid.len(),
@@ -741,51 +330,22 @@ pub fn unseen_compression(
         .reduce(|| 0.0, f32::max)
 }
 
-/// The fastest a density solve may push particles apart to undo compression that already
-/// exists at the start of a step, m/s.
-///
-/// A well-resolved flow starts each step less than 1 % compressed, and removing that over one
-/// step takes a few cm/s. A user can create far more: a wall drawn over the water, fluid pulled
-/// into a gap narrower than a particle, a pour onto a moving surface. Undoing a compression δ
-/// in one step takes a speed of about δ·d/Δt, which grows as Δt shrinks: a 30 % overlap
-/// undone in a 10 µs step throws particles at hundreds of m/s, the next step's CFL Δt is
-/// smaller still, and the kicks feed on themselves (seen in `dfsph2d stress`, which ended in
-/// particles at 1,900 m/s). Capping the part of the source term that comes from existing
-/// compression spreads such a correction over several steps at this speed instead; the part
-/// from the velocities (`Δt·Dρ/Dt`) is never capped, so the fluid still cannot compress
-/// further.
-pub const MAX_CORRECTION_SPEED: f32 = 2.0;
-
-/// The largest existing relative compression one step of length `dt` removes, for particle
-/// spacing `d`: a correction of that size moves particles apart at about
-/// [`MAX_CORRECTION_SPEED`].
-pub fn max_compression_correction(dt: f32, d: f32) -> f32 {
-    MAX_CORRECTION_SPEED * dt / d
-}
-
-/// Share of the previous step's stiffness applied as the warm start. A full warm start
-/// ratchets: the compression-only solve can add stiffness but never take back an excess, so
-/// the stored pressure creeps upward from step to step.
-fn warm_factor() -> f32 {
-    0.5
-}
-
-/// An iteration whose average error exceeds this multiple of the previous one (plus the
-/// tolerance) is taken back and ends the solve.
-const DIVERGING_ERROR_GROWTH: f64 = 1.5;
-
-/// A particle with fewer neighbours than this (fluid and boundary, itself excluded) takes no
-/// part in the divergence solve. Its neighbourhood is too thin for `Dρ/Dt` to mean anything:
-/// a splash droplet grazing a wall would otherwise get a stiffness from a near-zero gradient
-/// sum and kick its few neighbours to hundreds of m/s. Eight is the count of a full square
-/// lattice at support 2d; the free surface (five) is excluded, as in SPlisHSPlasH's 2D DFSPH.
-const MIN_NEIGHBORS_DIVERGENCE: usize = 7;
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::boundary::{AkinciWalls, BoundaryModel};
     use crate::neighbors::Grid;
+    use crate::settings::SolverSettings;
     use crate::simd::SimdPath;
+
+    /// Walls weighed as Akinci et al.'s.
+    fn akinci_walls<'a>(particles: &'a BoundaryParticles, lists: &'a NeighborLists) -> Walls<'a> {
+        Walls {
+            particles,
+            lists,
+            weight: AkinciWalls.gradient_weight(),
+        }
+    }
 
     /// A disordered patch of fluid on a floor of wall particles that move, with neighbour
     /// lists and the step's cache, built as the simulation builds them.
@@ -797,6 +357,24 @@ mod tests {
         fluid_lists: NeighborLists,
         boundary_lists: NeighborLists,
         cache: PairCache,
+        settings: SolverSettings,
+    }
+
+    impl Patch {
+        /// The patch as a step of `dt` sees it, with the default scene's settings.
+        fn context<'a>(&'a self, nb: Neighborhood<'a>, dt: f32) -> StepContext<'a> {
+            StepContext {
+                kernel: &self.kernel,
+                volume: self.volume,
+                spacing: 0.5 * self.kernel.support(),
+                dt,
+                gravity: Vec2::ZERO,
+                flow_speed: 0.0,
+                settings: &self.settings,
+                nb,
+                boundary: &self.boundary,
+            }
+        }
     }
 
     /// A deterministic jitter in [−0.5, 0.5).
@@ -859,12 +437,10 @@ mod tests {
             &kernel,
             volume,
             &mut fluid,
-            &boundary,
             &fluid_lists,
-            &boundary_lists,
+            akinci_walls(&boundary, &boundary_lists),
             &mut cache,
             f32::INFINITY,
-            AKINCI_WALLS,
         );
         Patch {
             kernel,
@@ -874,6 +450,7 @@ mod tests {
             fluid_lists,
             boundary_lists,
             cache,
+            settings: SolverSettings::from_scene(&crate::scene::Scene::default()),
         }
     }
 
@@ -968,7 +545,7 @@ mod tests {
         let nb = Neighborhood::new(&p.fluid_lists, &p.boundary_lists, &p.cache);
         let check = |p: &Patch, nb: &Neighborhood, dt: f32| {
             let rates = density_rates(p.volume, &p.fluid.velocity, nb);
-            unseen_compression(&p.kernel, p.volume, dt, &p.fluid, &p.boundary, nb, &rates)
+            unseen_compression(&p.context(*nb, dt), &p.fluid, &rates)
         };
         // The patch's velocities are random at up to 0.7 m/s against a 2 cm spacing: a step
         // of 10 ms moves neighbours by up to 0.5 d relative to each other, a clearly
@@ -994,12 +571,10 @@ mod tests {
             &p.kernel,
             p.volume,
             &mut p.fluid,
-            &p.boundary,
             &p.fluid_lists,
-            &p.boundary_lists,
+            akinci_walls(&p.boundary, &p.boundary_lists),
             &mut p.cache,
             f32::INFINITY,
-            AKINCI_WALLS,
         );
         let nb = Neighborhood::new(&p.fluid_lists, &p.boundary_lists, &p.cache);
         let rigid = check(&p, &nb, 1.0e-2);
@@ -1078,8 +653,7 @@ mod tests {
             }
             let check = |nb: &Neighborhood| {
                 let rates = density_rates(p.volume, v, nb);
-                unseen_compression(&p.kernel, p.volume, dt, &p.fluid, &p.boundary, nb, &rates)
-                    .to_bits()
+                unseen_compression(&p.context(*nb, dt), &p.fluid, &rates).to_bits()
             };
             assert_eq!(check(&simd_nb), check(&portable_nb), "Δt {dt}");
         }
@@ -1097,12 +671,10 @@ mod tests {
             &p.kernel,
             p.volume,
             &mut fluid,
-            &p.boundary,
             &p.fluid_lists,
-            &p.boundary_lists,
+            akinci_walls(&p.boundary, &p.boundary_lists),
             &mut portable,
             f32::INFINITY,
-            AKINCI_WALLS,
         );
         let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         let vbits = |v: &[Vec2]| {

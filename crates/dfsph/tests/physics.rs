@@ -398,7 +398,7 @@ fn overlapping_fluid_is_pushed_apart_gently() {
     // Two blocks placed a third of a spacing into each other: the particles along the seam
     // start strongly compressed. With 0.1 ms steps, undoing that in one step threw them apart
     // at 100 m/s; the density solve now removes existing compression no faster than
-    // MAX_CORRECTION_SPEED per step.
+    // `SolverSettings::max_correction_speed` per step.
     let s = Scene::from_json(
         r#"{"particle_radius": 0.01, "tank": {"min": [0, 0], "max": [2, 1]},
             "fluid": [{"min": [0, 0], "max": [0.5, 0.4]},

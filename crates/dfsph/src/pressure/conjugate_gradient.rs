@@ -20,7 +20,8 @@
 //!   rest it balances gravity's `Δt·g`, so each step starts almost converged. (The Jacobi solve
 //!   keeps half, which damps its own errors but throws away half of the support every step.)
 //! * **A stopping rule that sees momentum**: besides the average and largest density error,
-//!   the solve stops only once the velocity it has yet to correct is small. For conjugate
+//!   the solve stops only once the velocity it has yet to correct is small
+//!   ([`velocity_tolerance`]). For conjugate
 //!   gradients `α_k (r_k·z_k) = ‖κ_{k+1} − κ_k‖²_A` is Δt times the squared velocity change of
 //!   iteration k, and the sum over the last few iterations bounds the error's A-norm a few
 //!   iterations back from below (Hestenes–Stiefel; Strakoš & Tichý 2002). A column in free
@@ -33,50 +34,94 @@
 //!   together would be a surface tension of the solver's own. Pressures below zero are stored
 //!   as zero for the next warm start.
 //!
-//! It is meant to run with the mirrored, hydrostatic walls
-//! ([`crate::solver::MIRRORED_WALLS`], [`crate::forces::non_pressure_accelerations`]) and a
+//! It runs with the mirrored, hydrostatic walls ([`crate::boundary::MirroredWalls`]) and a
 //! hydrostatic initial pressure ([`crate::simulation::hydrostatic_pressure`]), which make water
-//! at rest the discrete equilibrium; the simulation sets all three together.
+//! at rest the discrete equilibrium; [`ConjugateGradient`] names both. Its divergence solve is
+//! the paper's Jacobi iteration ([`super::jacobi::divergence_solve`]).
 
 use crate::par::prelude::*;
 use glam::Vec2;
 
+use super::jacobi::{self, JacobiScratch};
+use super::{PressureSolver, SolveReport};
+use crate::boundary::{BoundaryModel, MirroredWalls};
 use crate::parallel::LIGHT_PASS_MIN_ITEMS;
 use crate::particles::FluidParticles;
 use crate::reduce;
-use crate::solver::{apply_pressure, density_rates_into, Neighborhood, SolveLimits, SolveReport};
+use crate::solver::{apply_pressure, density_rates_into};
+use crate::step::StepContext;
+
+/// The density solve by conjugate gradients, with the mirrored walls; the divergence solve by
+/// the paper's Jacobi iteration.
+#[derive(Clone, Debug)]
+pub(crate) struct ConjugateGradient {
+    /// The lattice's gradient consistency c ([`crate::packing::gradient_consistency`]).
+    gradient_consistency: f32,
+    scratch: CgScratch,
+    divergence: JacobiScratch,
+}
+
+impl ConjugateGradient {
+    pub fn new(gradient_consistency: f32) -> Self {
+        Self {
+            gradient_consistency,
+            scratch: CgScratch::default(),
+            divergence: JacobiScratch::default(),
+        }
+    }
+}
+
+impl PressureSolver for ConjugateGradient {
+    fn divergence_solve(&mut self, step: &StepContext, fluid: &mut FluidParticles) -> SolveReport {
+        jacobi::divergence_solve(step, fluid, &mut self.divergence)
+    }
+
+    fn density_solve(&mut self, step: &StepContext, fluid: &mut FluidParticles) -> SolveReport {
+        density_solve(step, self.gradient_consistency, fluid, &mut self.scratch)
+    }
+
+    fn density_rates(&self) -> Option<&[f32]> {
+        Some(&self.scratch.rate)
+    }
+
+    fn walls(&self) -> &'static dyn BoundaryModel {
+        &MirroredWalls
+    }
+
+    /// `1/c`: the solve stores the physical pressure `c·κ/Δt` (see [`density_solve`]).
+    fn pressure_force_scale(&self) -> f32 {
+        1.0 / self.gradient_consistency
+    }
+
+    /// The solve's starting guess for the first step: water at rest then starts in
+    /// equilibrium instead of falling into its bottom rows while the pressure builds up.
+    fn initial_pressure(&self, position: &[Vec2], gravity: Vec2, d: f32) -> Option<Vec<f32>> {
+        Some(crate::simulation::hydrostatic_pressure(
+            position, gravity, d,
+        ))
+    }
+}
 
 /// A particle this far (relative) below ρ0 is at the free surface. The row below a free
 /// surface has its full neighbourhood (the support is two spacings); the surface row misses
 /// about a fifth of its density.
 pub const SURFACE_DEFICIT: f32 = 0.02;
 
-/// A particle with fewer neighbours than this (fluid and walls, itself excluded) takes no part
-/// in the solve: its density rate means nothing (a splash droplet).
-const MIN_NEIGHBORS: usize = 5;
-
-/// The solve leaves at most this share of one step's gravity impulse `|g|·Δt` uncorrected
-/// (root mean square over the particles it solves for). 10 % let a 1 m tank at rest drift to
-/// 0.018 m/s over 20 s, 2 % keeps it under 0.009 m/s at about one extra iteration per step.
-pub const GRAVITY_IMPULSE_TOLERANCE: f32 = 0.02;
-
-/// In a moving flow the solve may leave this share of the fastest particle's speed
-/// uncorrected instead, when that is more than [`GRAVITY_IMPULSE_TOLERANCE`] allows. Water at
-/// rest moves at millimetres per second, so there the gravity bound decides; in the 5,000-
-/// particle dam break this cuts the solve from 31 to about 7 iterations a step, with the surge
-/// front within 1 % of the strict solve's.
-pub const FLOW_SPEED_TOLERANCE: f32 = 0.01;
-
 /// The velocity error (m/s, root mean square) at which the solve may stop: the speed that
-/// would create the density tolerance `tolerance_pct` over one step of `dt` at spacing `d`,
-/// and at most [`GRAVITY_IMPULSE_TOLERANCE`] of the gravity impulse `g·dt` (where g > 0) or
-/// [`FLOW_SPEED_TOLERANCE`] of `flow_speed` (the fastest particle's speed), whichever is
-/// larger.
-pub fn velocity_tolerance(tolerance_pct: f64, d: f32, g: f32, dt: f32, flow_speed: f32) -> f32 {
-    let from_density = (tolerance_pct / 100.0) as f32 * d / dt;
-    let from_gravity = GRAVITY_IMPULSE_TOLERANCE * g * dt;
+/// would create the density tolerance over one step of `step.dt` at spacing d, and at most
+/// [`SolverSettings::gravity_impulse_tolerance`] of the gravity impulse `g·Δt` (where g > 0)
+/// or [`SolverSettings::flow_speed_tolerance`] of `step.flow_speed` (the fastest particle's
+/// speed), whichever is larger.
+///
+/// [`SolverSettings::gravity_impulse_tolerance`]: crate::settings::SolverSettings::gravity_impulse_tolerance
+/// [`SolverSettings::flow_speed_tolerance`]: crate::settings::SolverSettings::flow_speed_tolerance
+pub(crate) fn velocity_tolerance(step: &StepContext) -> f32 {
+    let settings = step.settings;
+    let (d, g, dt) = (step.spacing, step.gravity.length(), step.dt);
+    let from_density = (settings.density.tolerance_pct / 100.0) as f32 * d / dt;
+    let from_gravity = settings.gravity_impulse_tolerance * g * dt;
     if from_gravity > 0.0 {
-        from_density.min(from_gravity.max(FLOW_SPEED_TOLERANCE * flow_speed))
+        from_density.min(from_gravity.max(settings.flow_speed_tolerance * step.flow_speed))
     } else {
         from_density
     }
@@ -84,7 +129,7 @@ pub fn velocity_tolerance(tolerance_pct: f64, d: f32, g: f32, dt: f32, flow_spee
 
 /// Scratch arrays of the conjugate-gradient solve.
 #[derive(Default, Clone, Debug)]
-pub struct CgScratch {
+struct CgScratch {
     active: Vec<f32>,
     residual: Vec<f32>,
     direction: Vec<f32>,
@@ -106,19 +151,17 @@ fn dot3(a: &[f32], b: &[f32], m: &[f32]) -> f64 {
 /// ([`crate::packing::gradient_consistency`]): the SPH gradient recovers c times a field's
 /// gradient, so a stiffness field κ pushes like the continuous pressure `c·κ/Δt`; at rest
 /// it reads ρ0·g·(H − y).
-#[allow(clippy::too_many_arguments)]
-pub fn density_solve(
-    volume: f32,
-    dt: f32,
+fn density_solve(
+    step: &StepContext,
     gradient_consistency: f32,
-    max_correction: f32,
-    warm_start: bool,
     fluid: &mut FluidParticles,
-    nb: &Neighborhood,
-    limits: SolveLimits,
-    velocity_tolerance: f32,
     scratch: &mut CgScratch,
 ) -> SolveReport {
+    let (volume, dt, nb, settings) = (step.volume, step.dt, &step.nb, step.settings);
+    let max_correction = settings.max_compression_correction(dt, step.spacing);
+    let (warm_start, limits) = (settings.warm_start, settings.density);
+    let velocity_tolerance = velocity_tolerance(step);
+    let min_neighbors = settings.conjugate_gradient_min_neighbors;
     let n = fluid.len();
     scratch.active.resize(n, 0.0);
     scratch.residual.resize(n, 0.0);
@@ -135,7 +178,7 @@ pub fn density_solve(
         fluid.pressure_over_rho0 = total;
         return SolveReport::default();
     }
-    let full = |i: usize| nb.fluid.range(i).len() + nb.boundary.range(i).len() >= MIN_NEIGHBORS;
+    let full = |i: usize| nb.fluid.range(i).len() + nb.boundary.range(i).len() >= min_neighbors;
     let inside = |i: usize| full(i) && fluid.density_ratio[i] >= 1.0 - SURFACE_DEFICIT;
     total
         .par_iter_mut()

@@ -17,11 +17,39 @@
 //! beside a wall would start 3 % too dense. We multiply by γ = (two-row sum)/(full sum), computed
 //! from the kernel, so that a straight wall reads like the fluid it continues; irregular
 //! samplings keep Akinci's adaptivity.
+//!
+//! Models. How the walls take part in the pressure solve is a [`BoundaryModel`], one per file:
+//! [`AkinciWalls`] (the wall feels the particle's own pressure once) and [`MirroredWalls`] (the
+//! wall mirrors the fluid, with its hydrostatic pressure). The pressure solver names the model
+//! it is meant for (`pressure::PressureSolver::walls`).
 
 use glam::Vec2;
 
 use crate::kernel::CubicSpline;
 use crate::neighbors::Grid;
+
+mod akinci;
+mod mirrored;
+
+pub use akinci::AkinciWalls;
+pub use mirrored::MirroredWalls;
+
+/// How wall particles enter the pressure terms of the fluid next to them. Their share of the
+/// density, `Σ_b Ψ_b W_ib`, is the same in every model.
+pub trait BoundaryModel: Send + Sync {
+    /// What multiplies the walls' share of the gradient sum `Σ_b Ψ_b ∇W_ib` and of the wall
+    /// flux `Σ_b Ψ_b v_b·∇W_ib` (dimensionless): the density rate, the pressure push and the
+    /// DFSPH factor alike, so the pressure operator stays symmetric whatever the weight.
+    fn gradient_weight(&self) -> f32;
+
+    /// The gradient of p/ρ0 (m/s²) that the walls' ghost particles add to the fluid
+    /// particle's own pressure, `p_b = p_i + ρ0·g_p·(x_b − x_i)`, under `gravity`; `None` when
+    /// the ghosts carry the particle's pressure alone.
+    fn hydrostatic_ghost_gradient(&self, gravity: Vec2) -> Option<Vec2> {
+        let _ = gravity;
+        None
+    }
+}
 
 /// Which body a boundary particle belongs to. Body 0 is the tank; every obstacle and drawn wall
 /// is a body of its own so it can be moved or erased as a whole.

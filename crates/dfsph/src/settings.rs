@@ -1,0 +1,201 @@
+//! Every stopping rule and safeguard of a step in one place: [`SolverSettings`], resolved once
+//! from the scene's `solver` section (and again when a user changes it) plus the fixed values
+//! below, each with the reason for its value.
+
+use crate::scene::Scene;
+
+/// Largest displacement in one step, in particle spacings, before the step is redone. Fluid
+/// at rest sits d/2 inside the tank, and the wall's first layer d/2 outside: a step longer
+/// than d/2 can carry a particle from next to the wall into the wall. At 1 d, `dfsph2d stress
+/// --seed 0` leaked at step 5,202 (a particle thrown into the floor at 19 m/s, 0.69 d in its
+/// last step); at d/2 it passes 20,000 steps. Normal flows rarely come near it (one retry in
+/// 1.5 s of the default dam break, none in the 5k benchmark). A constant as well as a setting:
+/// the scene validator bounds `time_step.min` with it before any simulation exists
+/// ([`crate::simulation::step_displacement_bound`]).
+pub const MAX_STEP_DISPLACEMENT: f32 = 0.5;
+
+/// Largest Δt·√(p/ρ0)/d, p the hydrostatic pressure at the bottom of the water. Against the
+/// pressure of a deep column the symmetric pressure force is a stiff spring on each particle's
+/// place in the lattice (its pull grows with p, not with the pressure's gradient), integrated
+/// explicitly like any spring: the 400-layer column of `a_deep_narrow_column_stays_at_rest`
+/// burst at Δt·√(gH)/d = 0.89 and held still at 0.66, at d = 5 mm and at d = 1 cm alike
+/// (docs/deep-columns.md). 0.6 leaves a margin of 1.5; flows rarely meet it, as their CFL
+/// step is shorter.
+pub const PRESSURE_WAVE_STABILITY: f32 = 0.6;
+
+/// When an iterative solve stops: the average error is within `tolerance_pct`, no particle's
+/// error is above `max_error_pct`, and at least `min_iterations` ran; or `max_iterations` ran.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SolveLimits {
+    /// Largest average error at exit, percent.
+    pub tolerance_pct: f64,
+    /// Largest single-particle error accepted at exit, percent. The average alone lets a
+    /// local hot spot through: ten particles 3 % compressed move the average of 20,000 by
+    /// 0.0015 %, and such a spot, left for the next step, grows.
+    pub max_error_pct: f64,
+    /// Iterations run whatever the errors say.
+    pub min_iterations: u32,
+    /// Iterations after which the solve stops whatever the errors say.
+    pub max_iterations: u32,
+}
+
+/// The stopping rules and safeguards of the solves and of the step, resolved once from the
+/// scene ([`Self::from_scene`]); the step reads nothing else to decide when to stop, retry or
+/// give up.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolverSettings {
+    // ---- The solves' stopping rules ----
+    /// The density solve (Algorithm 3): the scene's `density_tolerance_pct`, `min_iterations`
+    /// and `max_iterations`, and no particle compressed by more than 1 % (the average alone
+    /// misses hot spots, see [`SolveLimits::max_error_pct`]).
+    pub density: SolveLimits,
+    /// The divergence solve (Algorithm 2): the scene's `divergence_tolerance_pct` and the
+    /// density solve's iteration bounds; no bound on a single particle (the solve only keeps
+    /// the velocity field divergence-free, the density solve guards the compression).
+    pub divergence: SolveLimits,
+    /// Run the divergence solve (the scene's `divergence_solve`).
+    pub divergence_solve: bool,
+    /// Start both solves from the previous step's stiffness values (the scene's `warm_start`).
+    pub warm_start: bool,
+    /// Share of the previous step's stiffness the Jacobi solves start from (dimensionless,
+    /// 0.5). A full warm start ratchets: the compression-only solve can add stiffness but never
+    /// take back an excess, so the stored pressure creeps upward from step to step.
+    pub jacobi_warm_share: f32,
+    /// A Jacobi iteration whose average error exceeds this multiple of the previous one (plus
+    /// the tolerance) is taken back and ends the solve (dimensionless, 1.5): Jacobi is not
+    /// guaranteed to converge (dense clusters, e.g. fluid pulled into a point), and the growth
+    /// must not reach the velocities.
+    pub diverging_error_growth: f64,
+    /// The conjugate-gradient solve leaves at most this share of one step's gravity impulse
+    /// `|g|·Δt` uncorrected (root mean square over the particles it solves for;
+    /// dimensionless, 0.02). 10 % let a 1 m tank at rest drift to 0.018 m/s over 20 s, 2 %
+    /// keeps it under 0.009 m/s at about one extra iteration per step.
+    pub gravity_impulse_tolerance: f32,
+    /// In a moving flow the conjugate-gradient solve may leave this share of the fastest
+    /// particle's speed uncorrected instead, when that is more than
+    /// [`Self::gravity_impulse_tolerance`] allows (dimensionless, 0.01). Water at rest moves
+    /// at millimetres per second, so there the gravity bound decides; in the 5,000-particle dam
+    /// break this cuts the solve from 31 to about 7 iterations a step, with the surge front
+    /// within 1 % of the strict solve's.
+    pub flow_speed_tolerance: f32,
+
+    // ---- The solves' safeguards ----
+    /// A particle's DFSPH factor is capped at this multiple of the lattice's
+    /// ([`crate::solver::lattice_factor`]; dimensionless, 4). Particles with a full or a
+    /// free-surface neighbourhood stay below about 2.5 times it. A droplet with one or two
+    /// fluid neighbours pressed into a wall does not: it sits almost on top of a wall
+    /// particle, where ∇W vanishes, its boundary gradients nearly cancel, and its factor grows
+    /// without bound (200 times the lattice value was seen in `dfsph2d stress`), so that the
+    /// wall's few percent of extra density became a kick of thousands of m/s. With the cap
+    /// such a particle is pushed out over a few iterations instead of one.
+    pub max_factor_ratio: f32,
+    /// The fastest a density solve may push particles apart to undo compression that already
+    /// exists at the start of a step, m/s (2).
+    ///
+    /// A well-resolved flow starts each step less than 1 % compressed, and removing that over
+    /// one step takes a few cm/s. A user can create far more: a wall drawn over the water,
+    /// fluid pulled into a gap narrower than a particle, a pour onto a moving surface. Undoing
+    /// a compression δ in one step takes a speed of about δ·d/Δt, which grows as Δt shrinks: a
+    /// 30 % overlap undone in a 10 µs step throws particles at hundreds of m/s, the next
+    /// step's CFL Δt is smaller still, and the kicks feed on themselves (seen in `dfsph2d
+    /// stress`, which ended in particles at 1,900 m/s). Capping the part of the source term
+    /// that comes from existing compression spreads such a correction over several steps at
+    /// this speed instead; the part from the velocities (`Δt·Dρ/Dt`) is never capped, so the
+    /// fluid still cannot compress further.
+    pub max_correction_speed: f32,
+    /// A particle with fewer neighbours than this (fluid and boundary, itself excluded) takes
+    /// no part in the divergence solve (7). Its neighbourhood is too thin for `Dρ/Dt` to mean
+    /// anything: a splash droplet grazing a wall would otherwise get a stiffness from a
+    /// near-zero gradient sum and kick its few neighbours to hundreds of m/s. Eight is the
+    /// count of a full square lattice at support 2d; the free surface (five) is excluded, as
+    /// in SPlisHSPlasH's 2D DFSPH.
+    pub divergence_min_neighbors: usize,
+    /// A particle with fewer neighbours than this (fluid and walls, itself excluded) takes no
+    /// part in the conjugate-gradient density solve (5): its density rate means nothing (a
+    /// splash droplet).
+    pub conjugate_gradient_min_neighbors: usize,
+
+    // ---- The step's safeguards: retries of unsound steps ----
+    /// A density solve that reaches its iteration cap with a particle compressed by more than
+    /// this, percent (5), makes the step unsound (it is redone with half the Δt). A solve
+    /// that is merely slow to converge (a deep column building up its pressure) is not: a
+    /// smaller Δt cannot help it.
+    pub retry_density_error_pct: f64,
+    /// A step that would leave a particle compressed by more than this, percent, beyond what
+    /// the density solve predicted is redone with half the Δt (see
+    /// `solver::unseen_compression`). The same bound as the density solve's
+    /// [`SolveLimits::max_error_pct`] (1 %): the solve's promise must hold for the positions
+    /// the step really produces.
+    pub max_unseen_compression_pct: f64,
+    /// A step is redone for its unseen compression only while each halving of Δt cuts it
+    /// below this share of the attempt before (dimensionless, 0.75; a purely second-order
+    /// error would fall to a quarter). In the 80k dam break at Δt = 5 ms: 2.92 % at 2.5 ms,
+    /// 1.92 % at 1.25 ms, then 1.64, 1.44 and 1.35 % down to 0.16 ms: the later halvings only
+    /// cost solves.
+    pub unseen_retry_gain: f64,
+    /// Largest displacement in one step, in particle spacings ([`MAX_STEP_DISPLACEMENT`],
+    /// whose note gives the reason).
+    pub max_step_displacement: f32,
+    /// How often one step may be redone with half the time step before it is taken as it is
+    /// (4: Δt/16, after which the least bad attempt is taken).
+    pub max_step_retries: u32,
+    /// After a step was redone, each following step may be this much longer than the one
+    /// before until the CFL step takes over again (dimensionless, 1.2). It spares the
+    /// following steps from failing at the same length first.
+    pub retry_limit_growth: f32,
+
+    // ---- The step's safeguards: bounds on Δt besides CFL ----
+    /// Largest Δt·ν/d² of the explicit Laplacian viscosity (dimensionless, 0.125; Morris et
+    /// al. 1997: Δt ≤ 0.125 h²/ν). Without it a tank at rest with ν = 0.1 m²/s, d = 2 cm and
+    /// Δt = 2.5 ms (five times over) reached 16 m/s within 50 steps.
+    pub viscous_stability: f32,
+    /// Largest Δt·√(p/ρ0)/d at the bottom of the water ([`PRESSURE_WAVE_STABILITY`], whose
+    /// note gives the reason).
+    pub pressure_wave_stability: f32,
+}
+
+impl SolverSettings {
+    /// The scene's `solver` section, completed with the fixed safeguards above.
+    pub fn from_scene(scene: &Scene) -> Self {
+        let s = &scene.solver;
+        let density = SolveLimits {
+            tolerance_pct: s.density_tolerance_pct,
+            max_error_pct: 1.0,
+            min_iterations: s.min_iterations,
+            max_iterations: s.max_iterations,
+        };
+        Self {
+            density,
+            divergence: SolveLimits {
+                tolerance_pct: s.divergence_tolerance_pct,
+                max_error_pct: f64::INFINITY,
+                ..density
+            },
+            divergence_solve: s.divergence_solve,
+            warm_start: s.warm_start,
+            jacobi_warm_share: 0.5,
+            diverging_error_growth: 1.5,
+            gravity_impulse_tolerance: 0.02,
+            flow_speed_tolerance: 0.01,
+            max_factor_ratio: 4.0,
+            max_correction_speed: 2.0,
+            divergence_min_neighbors: 7,
+            conjugate_gradient_min_neighbors: 5,
+            retry_density_error_pct: 5.0,
+            max_unseen_compression_pct: density.max_error_pct,
+            unseen_retry_gain: 0.75,
+            max_step_displacement: MAX_STEP_DISPLACEMENT,
+            max_step_retries: 4,
+            retry_limit_growth: 1.2,
+            viscous_stability: 0.125,
+            pressure_wave_stability: PRESSURE_WAVE_STABILITY,
+        }
+    }
+
+    /// The largest existing relative compression one step of length `dt` (s) removes, for
+    /// particle spacing `d` (m): a correction of that size moves particles apart at about
+    /// [`Self::max_correction_speed`].
+    pub fn max_compression_correction(&self, dt: f32, d: f32) -> f32 {
+        self.max_correction_speed * dt / d
+    }
+}

@@ -1,0 +1,35 @@
+//! What the passes of one step read: [`StepContext`], built by the simulation for each solve
+//! from the state it owns, in place of the long argument lists the passes once took.
+
+use glam::Vec2;
+
+use crate::kernel::CubicSpline;
+use crate::particles::BoundaryParticles;
+use crate::settings::SolverSettings;
+use crate::solver::Neighborhood;
+
+/// The read-only inputs of a step's passes: the kernel and the fluid's constants, the Δt of
+/// the solve at hand, the step's neighbourhoods and the walls, and the stopping rules and
+/// safeguards. The particles a pass changes, and the solvers' scratch, are passed beside it.
+#[derive(Clone, Copy)]
+pub struct StepContext<'a> {
+    /// The smoothing kernel W.
+    pub kernel: &'a CubicSpline,
+    /// Volume of one fluid particle V = m/ρ0, m².
+    pub volume: f32,
+    /// Lattice spacing d, m.
+    pub spacing: f32,
+    /// Δt of the solve at hand, s: the step's own for the density solve and the non-pressure
+    /// forces, the previous step's for the divergence solve (it measures its error over it).
+    pub dt: f32,
+    /// Gravity, m/s².
+    pub gravity: Vec2,
+    /// The fastest fluid particle's speed after the previous step, m/s.
+    pub flow_speed: f32,
+    /// The stopping rules and safeguards.
+    pub settings: &'a SolverSettings,
+    /// Neighbour lists and the kernel gradients cached for the step.
+    pub nb: Neighborhood<'a>,
+    /// The wall particles.
+    pub boundary: &'a BoundaryParticles,
+}

@@ -1,0 +1,77 @@
+//! The Laplacian viscosity with a kinematic ν (Morris et al. 1997; Monaghan 2005, 2D so
+//! `2(d+2) = 8`):
+//!
+//! `a_i += 8ν Σ_j V_j (v_ij·x_ij)/(|x_ij|² + 0.01h²) ∇W_ij`,
+//!
+//! and the same against boundary particles with their velocity and `ν_b` (wall friction).
+//! Explicit, so stable only for `Δt ≤ 0.125·d²/ν` (`SolverSettings::viscous_stability`).
+
+use glam::Vec2;
+
+use super::ViscosityModel;
+use crate::kernel::CubicSpline;
+use crate::scene::ViscosityParams;
+use crate::settings::SolverSettings;
+use crate::step::StepContext;
+
+/// The Laplacian viscosity: ν between fluid particles and ν_b between fluid and walls.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Laplacian {
+    /// ν, m²/s (the scene's `viscosity.kinematic`).
+    pub kinematic: f32,
+    /// ν_b, m²/s (the scene's `viscosity.boundary_kinematic`).
+    pub boundary_kinematic: f32,
+}
+
+impl Laplacian {
+    pub fn from_scene(params: &ViscosityParams) -> Self {
+        Self {
+            kinematic: params.kinematic as f32,
+            boundary_kinematic: params.boundary_kinematic as f32,
+        }
+    }
+
+    /// `0.01h²`, m²: keeps `(v_ij·x_ij)/|x_ij|²` finite for particles on top of each other.
+    pub fn regularisation(kernel: &CubicSpline) -> f32 {
+        0.01 * kernel.support() * kernel.support()
+    }
+
+    /// `8ν_b`, m²/s, times [`Self::wall_sum`]; 0 when the walls have no friction.
+    pub fn wall_scale(&self) -> f32 {
+        8.0 * self.boundary_kinematic
+    }
+
+    /// `Σ_b Ψ_b (v_ib·x_ib)/(|x_ib|² + eps2) ∇W_ib` of fluid particle `i` at `xi` moving at
+    /// `vi`, over its wall neighbours (with their cached `∇W_ib`), 1/s.
+    #[inline]
+    pub fn wall_sum(step: &StepContext, i: usize, xi: Vec2, vi: Vec2, eps2: f32) -> Vec2 {
+        let (nb, boundary) = (&step.nb, step.boundary);
+        let r = nb.boundary.range(i);
+        let mut laplace = Vec2::ZERO;
+        for (&b, &g) in nb.boundary.of(i).iter().zip(&nb.boundary_grad[r]) {
+            let b = b as usize;
+            let xib = xi - boundary.position[b];
+            let vib = vi - boundary.velocity[b];
+            laplace += boundary.volume[b] * g * (vib.dot(xib) / (xib.length_squared() + eps2));
+        }
+        laplace
+    }
+}
+
+impl ViscosityModel for Laplacian {
+    /// `8ν`, m²/s, times `V Σ_j ∇W_ij (v_ij·x_ij)/(|x_ij|² + 0.01h²)`.
+    fn pair_scale(&self, _dt: f32) -> f32 {
+        8.0 * self.kinematic
+    }
+
+    /// `viscous_stability·d²/ν` with the larger of ν and ν_b (Morris et al. 1997, eq. 34, h
+    /// the smoothing length, our spacing d).
+    fn max_time_step(&self, spacing: f32, settings: &SolverSettings) -> f32 {
+        let nu = self.kinematic.max(self.boundary_kinematic);
+        if nu > 0.0 {
+            settings.viscous_stability * spacing * spacing / nu
+        } else {
+            f32::INFINITY
+        }
+    }
+}

@@ -1,0 +1,58 @@
+//! Viscosity models, one per file: [`Xsph`] velocity smoothing and the [`Laplacian`] viscosity
+//! with a kinematic ν. A scene combines them (each is off at zero, `viscosity` in the scene);
+//! `forces::non_pressure_accelerations` adds their accelerations.
+//!
+//! Their fluid pair sums run together, in one pass over the blocks
+//! (`blocked::BlockedPairs::viscosity_sums`, whose per-pair formulas are in the lane kernels
+//! `blocked/lanes.rs` and `blocked/avx512.rs`): the pass reads each pair's `W` and `∇W` once
+//! for both. So a model is a field of [`Viscosity`] rather than an entry of a list, and a new
+//! one is its file, its field here and its pair formula in the lane kernels.
+
+use crate::scene::ViscosityParams;
+use crate::settings::SolverSettings;
+
+mod laplacian;
+mod xsph;
+
+pub(crate) use laplacian::Laplacian;
+pub(crate) use xsph::Xsph;
+
+/// What a viscosity model tells the step.
+pub(crate) trait ViscosityModel {
+    /// What its fluid pair sum is multiplied by in the acceleration, for a step of `dt`
+    /// seconds (the sum's unit times this is m/s²); 0 when the model is off.
+    fn pair_scale(&self, dt: f32) -> f32;
+
+    /// The longest Δt, s, at which the model is stable at lattice spacing `spacing` (m);
+    /// infinite when it sets no bound.
+    fn max_time_step(&self, spacing: f32, settings: &SolverSettings) -> f32 {
+        let _ = (spacing, settings);
+        f32::INFINITY
+    }
+}
+
+/// The viscosity models of a scene, in solver units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Viscosity {
+    pub xsph: Xsph,
+    pub laplacian: Laplacian,
+}
+
+impl Viscosity {
+    /// The scene's `viscosity` section.
+    pub fn from_scene(params: &ViscosityParams) -> Self {
+        Self {
+            xsph: Xsph::from_scene(params),
+            laplacian: Laplacian::from_scene(params),
+        }
+    }
+
+    /// The longest Δt at which every model is stable, s.
+    pub fn max_time_step(&self, spacing: f32, settings: &SolverSettings) -> f32 {
+        let models: [&dyn ViscosityModel; 2] = [&self.xsph, &self.laplacian];
+        models
+            .iter()
+            .map(|m| m.max_time_step(spacing, settings))
+            .fold(f32::INFINITY, f32::min)
+    }
+}
