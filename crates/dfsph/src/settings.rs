@@ -39,6 +39,18 @@ pub struct SolveLimits {
     pub max_iterations: u32,
 }
 
+impl SolveLimits {
+    /// Whether a solve at `iterations` iterations, its average and largest errors `avg_pct`
+    /// and `max_pct`, goes on.
+    #[inline]
+    pub fn unmet(&self, avg_pct: f64, max_pct: f64, iterations: u32) -> bool {
+        (avg_pct > self.tolerance_pct
+            || max_pct > self.max_error_pct
+            || iterations < self.min_iterations)
+            && iterations < self.max_iterations
+    }
+}
+
 /// The stopping rules and safeguards of the solves and of the step, resolved once from the
 /// scene ([`Self::from_scene`]); the step reads nothing else to decide when to stop, retry or
 /// give up.

@@ -11,7 +11,7 @@ use std::ops::Range;
 
 use crate::par::prelude::*;
 
-use crate::lockstep::{self, Shared};
+use crate::lockstep::{self, Shared, Team};
 use crate::parallel::LIGHT_PASS_MIN_ITEMS;
 
 use super::{PressureSolver, SolveReport};
@@ -21,6 +21,7 @@ use crate::reduce;
 use crate::settings::SolveLimits;
 use crate::solver::apply_pressure;
 use crate::step::StepContext;
+use glam::Vec2;
 
 /// The paper's DFSPH: both solves by Jacobi iterations.
 #[derive(Clone, Debug, Default)]
@@ -120,10 +121,10 @@ impl JacobiScratch {
 /// the warm start keeps only part of it
 /// ([`SolverSettings::jacobi_warm_share`](crate::settings::SolverSettings::jacobi_warm_share)).
 ///
-/// The whole iteration runs in one [`lockstep`] region: each worker starts every pass on
-/// the same share of parts, takes what the other has not reached when its own is done, and
-/// the workers meet at a barrier between passes, instead of one rayon fork-join per pass
-/// (docs/PERFORMANCE.md has the measurements).
+/// The whole iteration runs in one [`lockstep`] region, each of its passes a method of
+/// [`Sweeps`]: each member starts every pass on the same share of parts, takes what the
+/// others have not reached when its own is done, and the members meet at a barrier between
+/// passes, instead of one rayon fork-join per pass (docs/PERFORMANCE.md has the measurements).
 fn jacobi_solve(
     step: &StepContext,
     problem: &JacobiProblem,
@@ -131,13 +132,7 @@ fn jacobi_solve(
     scratch: &mut JacobiScratch,
     total: &mut [f32],
 ) -> SolveReport {
-    let (volume, nb) = (step.volume, &step.nb);
-    let JacobiProblem {
-        limits,
-        rate_scale,
-        to_pct,
-        increment_scale,
-    } = *problem;
+    let limits = problem.limits;
     let diverging_error_growth = step.settings.diverging_error_growth;
     let n = fluid.len();
     for v in [
@@ -151,162 +146,227 @@ fn jacobi_solve(
     if n == 0 {
         return SolveReport::default();
     }
-    let terms = ResidualTerms {
-        volume,
-        grad_sum: nb.grad_sum,
-        wall_flux: nb.wall_flux,
-        source: &scratch.source,
-        rate_scale,
-        factor: &fluid.factor,
-        increment_scale,
-    };
-    // The residual sum decides when to stop, so it is taken in an order that does not
-    // depend on the work split (`reduce`): per part of `blocks_per_part` blocks, then the
-    // parts in order.
-    let blocks = n.div_ceil(LANES);
-    let blocks_per_part = reduce::part_units(blocks, 16);
-    let parts = blocks.div_ceil(blocks_per_part);
     let mut part_sums = [(0.0, 0.0); reduce::MAX_PARTS];
-    let part_sums = Shared::new(&mut part_sums[..parts]);
-    let velocity = Shared::new(&mut fluid.velocity);
-    let total = Shared::new(total);
-    // Two increment buffers and two rate buffers: the residual pass writes the next into
-    // one while the other keeps the increment applied last, to take an iteration back.
-    let increments = [
-        Shared::new(&mut scratch.delta),
-        Shared::new(&mut scratch.previous_delta),
-    ];
-    let rates = [
-        Shared::new(&mut scratch.rate),
-        Shared::new(&mut scratch.previous_rate),
-    ];
-    // Part `p`'s blocks and particles.
-    let part = |p: usize| -> (Range<usize>, Range<usize>) {
-        let part_blocks = p * blocks_per_part..((p + 1) * blocks_per_part).min(blocks);
-        let items = part_blocks.start * LANES..(part_blocks.end * LANES).min(n);
-        (part_blocks, items)
-    };
+    let sweeps = Sweeps::new(step, problem, fluid, scratch, total, &mut part_sums);
 
     let outcomes = lockstep::run(|team| {
-        // Shares cut at part bounds, balanced by neighbour slots.
-        let my_parts = team.share(parts, |p| {
-            nb.blocks.slots_before((p * blocks_per_part).min(blocks)) as u64
-        });
-
-        // The residuals at the current velocities, part by part, written into
-        // `increments[buffer]` and `rates[buffer]` with the next increments; then, after the
-        // barrier, the average and largest residual over all parts (every worker takes the
-        // same sum in the same order, so all decide alike).
-        let residuals = |buffer: usize| -> (f64, f64) {
-            // SAFETY: in this pass the velocities are only read; each part's items and sum
-            // are written by the one worker that took the part; the barrier below ends the
-            // pass.
-            let vel = unsafe { velocity.read() };
-            for p in team.parts(my_parts.clone()) {
-                let (part_blocks, items) = part(p);
-                let (d, r, sum) = unsafe {
-                    (
-                        increments[buffer].part_mut(items.clone()),
-                        rates[buffer].part_mut(items),
-                        &mut part_sums.part_mut(p..p + 1)[0],
-                    )
-                };
-                // The residuals of a few blocks at a time, summed together.
-                const GROUP: usize = reduce::BLOCKS_TOGETHER;
-                let mut errors = [[0.0f32; LANES]; GROUP];
-                let mut acc = (0.0, 0.0);
-                let groups = d.chunks_mut(GROUP * LANES).zip(r.chunks_mut(GROUP * LANES));
-                for (g, (d, r)) in groups.enumerate() {
-                    let count = d.len().div_ceil(LANES);
-                    let first = part_blocks.start + g * GROUP;
-                    let e = &mut errors[..count];
-                    nb.blocks
-                        .residual_blocks(first..first + count, vel, &terms, d, r, e);
-                    acc = reduce::fold_block_sums(acc, &errors, count);
-                }
-                *sum = acc;
-            }
-            team.wait();
-            // SAFETY: the part sums are written only in the residual pass, which every
-            // worker has finished; the next one starts after another barrier.
-            let (sum, max) = unsafe { part_sums.read() }
-                .iter()
-                .copied()
-                .fold((0.0, 0.0), reduce::add_sum_max);
-            (sum / n as f64 * to_pct, max * to_pct)
-        };
-        // Apply the increments in `increments[buffer]` to the velocities and add them to the
-        // running totals, part by part.
-        let apply = |buffer: usize| {
-            // SAFETY: in this pass the increments are only read; each part's velocities and
-            // totals are written by the one worker that took the part; the barrier below
-            // ends the pass.
-            let kappa = unsafe { increments[buffer].read() };
-            for p in team.parts(my_parts.clone()) {
-                let (part_blocks, items) = part(p);
-                let (vel, sum) =
-                    unsafe { (velocity.part_mut(items.clone()), total.part_mut(items)) };
-                nb.blocks
-                    .apply_blocks(part_blocks, volume, kappa, nb.grad_sum, vel, Some(sum));
-            }
-            team.wait();
-        };
-
-        let mut current = 0;
-        let mut rates_current = 0;
-        let (mut avg, mut max) = residuals(current);
+        let mine = sweeps.share(team);
+        // The buffer the next increments are written into, and the one holding the rates at
+        // the velocities as they are.
+        let (mut next, mut rates_now) = (0, 0);
+        let (mut avg, mut max) = sweeps.residuals(team, &mine, next);
         let mut iterations = 0;
-        while (avg > limits.tolerance_pct
-            || max > limits.max_error_pct
-            || iterations < limits.min_iterations)
-            && iterations < limits.max_iterations
-        {
-            apply(current);
-            current = 1 - current;
-            rates_current = current;
+        while limits.unmet(avg, max, iterations) {
+            sweeps.apply(team, &mine, next);
+            next = 1 - next;
+            rates_now = next;
             let previous = (avg, max);
-            (avg, max) = residuals(current);
+            (avg, max) = sweeps.residuals(team, &mine, next);
             iterations += 1;
             if avg.is_nan() || avg > diverging_error_growth * previous.0 + limits.tolerance_pct {
                 // Jacobi is not guaranteed to converge (dense clusters, e.g. fluid pulled
                 // into a point): an iteration that makes the error grow is taken back and
                 // the solve stops, rather than feeding the growth into the velocities.
-                let applied = 1 - current;
-                for p in team.parts(my_parts.clone()) {
-                    let (_, items) = part(p);
-                    // SAFETY: each part is negated by the worker that took it; the barrier
-                    // orders this before the pass that reads the increments.
-                    unsafe { increments[applied].part_mut(items) }
-                        .iter_mut()
-                        .for_each(|d| *d = -*d);
-                }
-                team.wait();
-                apply(applied);
+                sweeps.take_back(team, &mine, 1 - next);
                 // The velocities are back where the previous pass read them.
-                rates_current = applied;
+                rates_now = 1 - next;
                 (avg, max) = previous;
                 break;
             }
         }
-        (
-            SolveReport {
-                iterations,
-                avg_error_pct: avg,
-                max_error_pct: max,
-            },
-            current,
-            rates_current,
-        )
+        let report = SolveReport {
+            iterations,
+            avg_error_pct: avg,
+            max_error_pct: max,
+        };
+        (report, next, rates_now)
     });
-    let (report, current, rates_current) = outcomes[0];
+    let (report, next, rates_now) = outcomes[0];
     // The next increment and the current rates go back where the callers look for them.
-    if current == 1 {
+    if next == 1 {
         std::mem::swap(&mut scratch.delta, &mut scratch.previous_delta);
     }
-    if rates_current == 1 {
+    if rates_now == 1 {
         std::mem::swap(&mut scratch.rate, &mut scratch.previous_rate);
     }
     report
+}
+
+/// The passes of a Jacobi solve, run by every member of its [`lockstep`] region, and the arrays
+/// they share. A pass works part by part (a part is `blocks_per_part` blocks of [`LANES`]
+/// particles); each part is written by the one member that took it, and the pass ends at a
+/// barrier. The increment and rate arrays come in two buffers: the residual pass writes the
+/// next increments into one while the other keeps the increments applied last, to take an
+/// iteration back.
+struct Sweeps<'a> {
+    step: &'a StepContext<'a>,
+    terms: ResidualTerms<'a>,
+    /// What turns the average residual into the reported error, percent.
+    to_pct: f64,
+    n: usize,
+    blocks: usize,
+    blocks_per_part: usize,
+    parts: usize,
+    velocity: Shared<'a, Vec2>,
+    total: Shared<'a, f32>,
+    increments: [Shared<'a, f32>; 2],
+    rates: [Shared<'a, f32>; 2],
+    /// Per part, the (sum, max) of its residuals: the residual sum decides when to stop, so
+    /// it is taken in an order that does not depend on the work split (`reduce`), per part,
+    /// then the parts in order.
+    part_sums: Shared<'a, (f64, f64)>,
+}
+
+impl<'a> Sweeps<'a> {
+    fn new(
+        step: &'a StepContext<'a>,
+        problem: &JacobiProblem,
+        fluid: &'a mut FluidParticles,
+        scratch: &'a mut JacobiScratch,
+        total: &'a mut [f32],
+        part_sums: &'a mut [(f64, f64); reduce::MAX_PARTS],
+    ) -> Self {
+        let n = fluid.len();
+        let blocks = n.div_ceil(LANES);
+        let blocks_per_part = reduce::part_units(blocks, 16);
+        let parts = blocks.div_ceil(blocks_per_part);
+        Self {
+            step,
+            terms: ResidualTerms {
+                volume: step.volume,
+                grad_sum: step.nb.grad_sum,
+                wall_flux: step.nb.wall_flux,
+                source: &scratch.source,
+                rate_scale: problem.rate_scale,
+                factor: &fluid.factor,
+                increment_scale: problem.increment_scale,
+            },
+            to_pct: problem.to_pct,
+            n,
+            blocks,
+            blocks_per_part,
+            parts,
+            velocity: Shared::new(&mut fluid.velocity),
+            total: Shared::new(total),
+            increments: [
+                Shared::new(&mut scratch.delta),
+                Shared::new(&mut scratch.previous_delta),
+            ],
+            rates: [
+                Shared::new(&mut scratch.rate),
+                Shared::new(&mut scratch.previous_rate),
+            ],
+            part_sums: Shared::new(&mut part_sums[..parts]),
+        }
+    }
+
+    /// This member's share of the parts, the same in every pass, cut at part bounds and
+    /// balanced by neighbour slots.
+    fn share(&self, team: &Team) -> Range<usize> {
+        let (blocks, per_part) = (self.blocks, self.blocks_per_part);
+        team.share(self.parts, |p| {
+            self.step.nb.blocks.slots_before((p * per_part).min(blocks)) as u64
+        })
+    }
+
+    /// Part `p`'s blocks and particles.
+    fn part(&self, p: usize) -> (Range<usize>, Range<usize>) {
+        let part_blocks =
+            p * self.blocks_per_part..((p + 1) * self.blocks_per_part).min(self.blocks);
+        let items = part_blocks.start * LANES..(part_blocks.end * LANES).min(self.n);
+        (part_blocks, items)
+    }
+
+    /// The residuals at the current velocities, part by part, written into
+    /// `increments[buffer]` and `rates[buffer]` with the next increments; then, after the
+    /// barrier, the average and largest residual over all parts, in percent (every member
+    /// takes the same sum in the same order, so all decide alike).
+    fn residuals(&self, team: &Team, mine: &Range<usize>, buffer: usize) -> (f64, f64) {
+        // SAFETY: in this pass the velocities are only read; each part's items and sum are
+        // written by the one member that took the part; the barrier below ends the pass.
+        let vel = unsafe { self.velocity.read() };
+        for p in team.parts(mine.clone()) {
+            let (part_blocks, items) = self.part(p);
+            let (d, r, sum) = unsafe {
+                (
+                    self.increments[buffer].part_mut(items.clone()),
+                    self.rates[buffer].part_mut(items),
+                    &mut self.part_sums.part_mut(p..p + 1)[0],
+                )
+            };
+            // The residuals of a few blocks at a time, summed together.
+            const GROUP: usize = reduce::BLOCKS_TOGETHER;
+            let mut errors = [[0.0f32; LANES]; GROUP];
+            let mut acc = (0.0, 0.0);
+            let groups = d.chunks_mut(GROUP * LANES).zip(r.chunks_mut(GROUP * LANES));
+            for (g, (d, r)) in groups.enumerate() {
+                let count = d.len().div_ceil(LANES);
+                let first = part_blocks.start + g * GROUP;
+                let e = &mut errors[..count];
+                self.step.nb.blocks.residual_blocks(
+                    first..first + count,
+                    vel,
+                    &self.terms,
+                    d,
+                    r,
+                    e,
+                );
+                acc = reduce::fold_block_sums(acc, &errors, count);
+            }
+            *sum = acc;
+        }
+        team.wait();
+        // SAFETY: the part sums are written only in the residual pass, which every member
+        // has finished; the next one starts after another barrier.
+        let (sum, max) = unsafe { self.part_sums.read() }
+            .iter()
+            .copied()
+            .fold((0.0, 0.0), reduce::add_sum_max);
+        (sum / self.n as f64 * self.to_pct, max * self.to_pct)
+    }
+
+    /// Apply the increments in `increments[buffer]` to the velocities and add them to the
+    /// running totals, part by part.
+    fn apply(&self, team: &Team, mine: &Range<usize>, buffer: usize) {
+        // SAFETY: in this pass the increments are only read; each part's velocities and
+        // totals are written by the one member that took the part; the barrier below ends
+        // the pass.
+        let kappa = unsafe { self.increments[buffer].read() };
+        let nb = &self.step.nb;
+        for p in team.parts(mine.clone()) {
+            let (part_blocks, items) = self.part(p);
+            let (vel, sum) = unsafe {
+                (
+                    self.velocity.part_mut(items.clone()),
+                    self.total.part_mut(items),
+                )
+            };
+            nb.blocks.apply_blocks(
+                part_blocks,
+                self.step.volume,
+                kappa,
+                nb.grad_sum,
+                vel,
+                Some(sum),
+            );
+        }
+        team.wait();
+    }
+
+    /// Take back the increments of `increments[buffer]`, applied last: negate them, part by
+    /// part, and apply them.
+    fn take_back(&self, team: &Team, mine: &Range<usize>, buffer: usize) {
+        for p in team.parts(mine.clone()) {
+            let (_, items) = self.part(p);
+            // SAFETY: each part is negated by the member that took it; the barrier orders
+            // this before the pass that reads the increments.
+            unsafe { self.increments[buffer].part_mut(items) }
+                .iter_mut()
+                .for_each(|d| *d = -*d);
+        }
+        team.wait();
+        self.apply(team, mine, buffer);
+    }
 }
 
 /// Divergence solve (TVCG 2017, Algorithm 2): make `Dρ/Dt = 0` so the velocity field is
