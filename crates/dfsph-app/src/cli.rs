@@ -62,8 +62,8 @@ time scale only changes how many steps a frame takes, which a step-by-step run d
 Violations:
   - a non-finite position, velocity or statistic, or a particle the solver reset because it
     became non-finite;
-  - a fluid particle outside the tank (beyond the centre line of its first wall layer, d/2
-    outside the interior);
+  - a fluid particle outside the tank (beyond the centre line of its first wall layer, at least
+    d/2 outside the interior);
   - a fluid particle count that differs from initial + poured − erased, or exceeds the budget;
   - a particle clamped back into the tank (the wall leaked);
   - a density error above the bound: the largest single-particle compression after the density

@@ -347,11 +347,10 @@ fn check_state(sim: &Simulation, expected: usize) -> Option<String> {
             sim.scene().max_particles
         ));
     }
-    let (lo, hi) = sim.tank_interior();
-    // The centre line of the first wall layer, d/2 outside the interior (a hair more for
-    // rounding).
-    let d = 2.0 * sim.particle_radius();
-    let slack = Vec2::splat(0.5 * d * 1.001);
+    // The centre line of the first wall layer, at least d/2 outside the interior (a hair more
+    // for rounding).
+    let (lo, hi) = sim.tank_containment();
+    let slack = Vec2::splat(0.001 * sim.particle_radius());
     let (lo, hi) = (lo - slack, hi + slack);
     for ((x, v), id) in sim.positions().iter().zip(sim.velocities()).zip(sim.ids()) {
         if !(x.is_finite() && v.is_finite()) {

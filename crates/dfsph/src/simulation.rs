@@ -83,6 +83,9 @@ pub struct Simulation {
     pub(crate) boundary: BoundaryParticles,
     /// Body 0 is the tank.
     pub(crate) bodies: Vec<Body>,
+    /// How far the tank's first wall layer lies outside its interior, below and left of it
+    /// and above and right of it, m ([`Self::tank_containment`]).
+    tank_wall_margins: (Vec2, Vec2),
     /// γ of [`boundary::wall_volume_correction`].
     wall_gamma: f32,
     /// Cap on the DFSPH factor ([`SolverSettings::max_factor_ratio`] × the lattice factor).
@@ -169,6 +172,7 @@ impl Simulation {
             fluid: FluidParticles::default(),
             boundary: BoundaryParticles::default(),
             bodies: Vec::new(),
+            tank_wall_margins: (Vec2::ZERO, Vec2::ZERO),
             wall_gamma: boundary::wall_volume_correction(&kernel, d),
             max_factor: settings.max_factor_ratio * solver::lattice_factor(&kernel, d, volume),
             settings,
@@ -204,6 +208,12 @@ impl Simulation {
         }
         sim.bodies.push(Body::default());
         let tank_samples = samples.positions.len();
+        sim.tank_wall_margins = boundary::first_layer_margins(
+            &samples.positions,
+            to_vec2(scene.tank.min),
+            to_vec2(scene.tank.max),
+            d,
+        );
         for obstacle in &scene.obstacles {
             let body = sim.bodies.len() as BodyId;
             sim.bodies.push(Body::default());
@@ -732,15 +742,23 @@ impl Simulation {
         )
     }
 
+    /// The box a fluid particle stays in unless it went through a wall, m: the tank's
+    /// interior grown on each side to the centre line of the first wall layer, at least d/2
+    /// out ([`boundary::first_layer_margins`]; on the hexagonal lattice the floor's and the
+    /// ceiling's rows can lie further out).
+    pub fn tank_containment(&self) -> (Vec2, Vec2) {
+        let (lo, hi) = self.tank_interior();
+        (lo - self.tank_wall_margins.0, hi + self.tank_wall_margins.1)
+    }
+
     /// Last-resort containment: a particle whose centre has crossed the centre line of the
-    /// tank's first boundary layer (d/2 outside the interior) has gone through the wall; it is
-    /// put back on the interior's edge, its outward velocity removed, and counted. A
+    /// tank's first boundary layer ([`Self::tank_containment`]) has gone through the wall; it
+    /// is put back on the interior's edge, its outward velocity removed, and counted. A
     /// non-finite particle is reset to rest at the tank centre and counted. Both counts
     /// should stay zero.
     fn enforce_tank(&mut self) -> (u32, u32) {
         let (lo, hi) = self.tank_interior();
-        let wall = Vec2::splat(0.5 * self.spacing);
-        let (outer_lo, outer_hi) = (lo - wall, hi + wall);
+        let (outer_lo, outer_hi) = self.tank_containment();
         let centre = 0.5 * (lo + hi);
         let wall_v = self.bodies[0].velocity;
         self.fluid

@@ -167,6 +167,42 @@ impl BoundarySamples {
     }
 }
 
+/// How far outside the interior `[lo, hi]` of a tank the centre line of its first wall layer
+/// lies on each side, as (left, bottom) and (right, top) distances, m: per side, the nearest
+/// of the tank's wall samples `walls` beyond that side (within the interior's span along it),
+/// and at least `d/2`. On the square lattice every side's is about `d/2` (the walls are
+/// stretched to fit); the hexagonal walls continue the fluid's lattice, whose rows and columns
+/// need not meet the tank at `d/2` (the ceiling's first row lies anywhere up to a row
+/// distance, 0.93 d, above it; the right wall's nearest column up to 0.54 d right of it).
+/// A particle is through a wall only past its first layer's centre line.
+pub fn first_layer_margins(walls: &[Vec2], lo: Vec2, hi: Vec2, d: f32) -> (Vec2, Vec2) {
+    let half = 0.5 * d;
+    let mut near_lo = Vec2::INFINITY;
+    let mut near_hi = Vec2::INFINITY;
+    for &p in walls {
+        let within_x = p.x >= lo.x && p.x <= hi.x;
+        let within_y = p.y >= lo.y && p.y <= hi.y;
+        if within_y && p.x < lo.x {
+            near_lo.x = near_lo.x.min(lo.x - p.x);
+        }
+        if within_y && p.x > hi.x {
+            near_hi.x = near_hi.x.min(p.x - hi.x);
+        }
+        if within_x && p.y < lo.y {
+            near_lo.y = near_lo.y.min(lo.y - p.y);
+        }
+        if within_x && p.y > hi.y {
+            near_hi.y = near_hi.y.min(p.y - hi.y);
+        }
+    }
+    // A side without samples (none here: the tank is closed) keeps d/2.
+    let margin = |m: f32| if m.is_finite() { m.max(half) } else { half };
+    (
+        Vec2::new(margin(near_lo.x), margin(near_lo.y)),
+        Vec2::new(margin(near_hi.x), margin(near_hi.y)),
+    )
+}
+
 /// γ: the ratio of the kernel sum over two lattice rows to the sum over a full lattice
 /// neighbourhood, so that a two-layer straight wall gets exactly the fluid's volume d².
 pub fn wall_volume_correction(kernel: &CubicSpline, d: f32) -> f32 {
@@ -240,6 +276,44 @@ mod tests {
             vol[mid],
             lattice_sum
         );
+    }
+
+    #[test]
+    fn the_first_wall_layer_is_half_a_spacing_out_on_the_square_lattice_and_the_rows_on_the_hexagonal(
+    ) {
+        let (lo, hi, d) = (Vec2::new(0.0, 0.0), Vec2::new(2.66, 1.25), 0.15);
+        let mut square = BoundarySamples::default();
+        square.add_tank(lo, hi, d, 0);
+        let (m_lo, m_hi) = first_layer_margins(&square.positions, lo, hi, d);
+        // The square walls are stretched to fit the interior: their first layer is half a
+        // (stretched) spacing out, within a few percent of d/2.
+        for m in [m_lo.x, m_lo.y, m_hi.x, m_hi.y] {
+            assert!((m - 0.5 * d).abs() < 0.05 * d, "{m}");
+        }
+        // The hexagonal lattice's rows lie at d/2 + k·row: a ceiling at 1.06 m is just above
+        // row 7 (1.052 m), and row 8 lies 0.88 d above it.
+        let (row, along) = (
+            crate::packing::ROW_DISTANCE as f32 * d,
+            crate::packing::ROW_SPACING as f32 * d,
+        );
+        let hi = Vec2::new(2.66, 1.06);
+        let mut hexagonal = BoundarySamples::default();
+        hexagonal.add_hexagonal_tank([0.0, 0.0], [2.66, 1.06], d as f64, 0);
+        let (m_lo, m_hi) = first_layer_margins(&hexagonal.positions, lo, hi, d);
+        assert!(
+            (m_hi.y - (0.5 * d + 8.0 * row - 1.06)).abs() < 1e-5,
+            "{m_hi}"
+        );
+        assert!(m_hi.y > 0.8 * d);
+        // Anchored at the lower-left corner, the lattice's wall rows and columns there lie
+        // closer than d/2 (0.43 d below, 0.04 d left): the rule's d/2 stands.
+        assert_eq!(m_lo, Vec2::splat(0.5 * d));
+        // The columns alternate by half a spacing: the nearest beyond the right side is
+        // within that.
+        assert!(m_hi.x >= 0.5 * d && m_hi.x <= 0.5 * along + 1e-5, "{m_hi}");
+        // A ceiling just below a row keeps the rule's d/2.
+        let (_, m_hi) = first_layer_margins(&hexagonal.positions, lo, Vec2::new(2.66, 1.18), d);
+        assert_eq!(m_hi.y, 0.5 * d);
     }
 
     #[test]
