@@ -13,12 +13,12 @@ use dfsph::scene::BUILTIN_SCENES;
 use dfsph::{Action, Scene, Simulation, StepStats};
 use eframe::egui::{self, vec2, Color32, Sense, Stroke, ViewportCommand};
 
-use crate::clock::{FrameClock, FRAME_SLICE, STEP_BUDGET};
 use crate::export;
 use crate::hud::{self, FrameStats, History, HudInfo, Rate};
 use crate::input::{Command, InputMapper, Tool, ViewInput};
 use crate::panel::{self, PanelState};
 use crate::render::{self, Coloring, ViewTransform};
+use crate::stepper::Stepper;
 use crate::ViewerOptions;
 
 /// How long `--exit-after` waits for the screenshot before giving up.
@@ -77,11 +77,11 @@ impl SessionRecorder {
 
 /// The viewer.
 pub struct ViewerApp {
-    sim: Simulation,
+    /// The simulation: home while a frame reads it, stepping on its own thread in between.
+    sim: Stepper,
     /// `max_particles` of the scene as loaded; the pour budget is derived from it.
     requested_max_particles: usize,
     mapper: InputMapper,
-    clock: FrameClock,
     paused: bool,
     coloring: Coloring,
     time_scale: f64,
@@ -126,9 +126,8 @@ impl ViewerApp {
         Ok(Self {
             mapper: InputMapper::new(sim.gravity(), 2.0 * sim.particle_radius()),
             radius_edit: sim.scene().particle_radius,
-            sim,
+            sim: Stepper::new(sim),
             requested_max_particles,
-            clock: FrameClock::default(),
             paused: false,
             coloring: Coloring::default(),
             time_scale: 1.0,
@@ -188,12 +187,11 @@ impl ViewerApp {
     fn load(&mut self, ctx: &egui::Context, scene: Scene, requested_max_particles: usize) -> bool {
         match build_simulation(scene, requested_max_particles) {
             Ok(sim) => {
-                self.sim = sim;
+                self.sim.replace(sim);
                 self.requested_max_particles = requested_max_particles;
                 self.mapper
                     .reset(self.sim.gravity(), 2.0 * self.sim.particle_radius());
                 self.radius_edit = self.sim.scene().particle_radius;
-                self.clock.reset();
                 self.history.clear();
                 ctx.send_viewport_cmd(ViewportCommand::Title(window_title(self.sim.scene())));
                 true
@@ -234,7 +232,7 @@ impl ViewerApp {
             }
             Command::TogglePause => {
                 self.paused = !self.paused;
-                self.clock.reset();
+                self.sim.reset_pace();
             }
             Command::Step => {
                 self.paused = true;
@@ -398,6 +396,7 @@ impl eframe::App for ViewerApp {
     /// The window is closing: end the recording with the session's length and a
     /// fingerprint of the final state.
     fn on_exit(&mut self, _gl: Option<&eframe::glow::Context>) {
+        self.take_back_the_simulation(0.0);
         if let Some(rec) = self.recorder.take() {
             let end = End::of(self.session_steps, &self.sim);
             if let Err(e) = rec.recorder.finish(&end) {
@@ -415,6 +414,9 @@ impl eframe::App for ViewerApp {
         self.fps.add(1.0, frame_seconds);
         self.last_frame = Some(now);
         self.frames += 1;
+        // Everything below reads the simulation: it comes home first, with the steps it took
+        // while the last frame was drawn.
+        self.take_back_the_simulation(frame_seconds);
         if self
             .status
             .as_ref()
@@ -483,32 +485,33 @@ impl eframe::App for ViewerApp {
         for cmd in commands {
             self.apply(ctx, cmd);
         }
-        if !self.paused && !exiting {
-            let slice = FRAME_SLICE * self.time_scale;
-            let mut steps = Vec::new();
-            let sim = &mut self.sim;
-            let report = self.clock.advance(slice, STEP_BUDGET, || {
-                let s = *sim.step();
-                steps.push(s);
-                s.dt
-            });
-            self.session_steps += steps.len() as u64;
-            self.steps_per_second
-                .add(report.steps as f64, frame_seconds);
-            self.sim_rate.add(report.simulated, frame_seconds);
-            self.record(&steps);
-        }
-
         // A reset or a new scene may have changed the world bounds.
         let (lo, hi) = render::world_bounds(&self.sim);
         let transform = ViewTransform::fit(lo, hi, rect.shrink(8.0));
         self.draw(ctx, &painter, rect, &transform, hover.filter(|_| over_view));
         hud::help_window(ctx, &mut self.show_help);
+        // The simulation steps while this frame is drawn, until the next one begins.
+        if !self.paused && !exiting {
+            self.sim.send_away(self.time_scale);
+        }
         ctx.request_repaint();
     }
 }
 
 impl ViewerApp {
+    /// Bring the simulation home from its stepping and account for the steps it took, over
+    /// `frame_seconds` of wall time.
+    fn take_back_the_simulation(&mut self, frame_seconds: f64) {
+        let away = self.sim.bring_home();
+        self.session_steps += away.steps.len() as u64;
+        if !self.paused {
+            self.steps_per_second
+                .add(away.steps.len() as f64, frame_seconds);
+            self.sim_rate.add(away.simulated, frame_seconds);
+        }
+        self.record(&away.steps);
+    }
+
     /// How much slower than asked simulated time runs (budget overruns and slow frames
     /// together), when it is noticeably slower.
     fn slowed(&self) -> Option<f64> {
@@ -568,6 +571,7 @@ impl ViewerApp {
             time: self.sim.time(),
             stats: &stats,
             paused: self.paused,
+            realtime: (!self.paused).then(|| self.sim_rate.get()),
             slowed: self.slowed(),
             clamped: self.sim.total_clamped(),
             non_finite: self.sim.total_non_finite(),

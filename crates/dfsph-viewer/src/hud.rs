@@ -168,6 +168,8 @@ pub struct HudInfo<'a> {
     pub time: f64,
     pub stats: &'a StepStats,
     pub paused: bool,
+    /// The real-time factor: simulated seconds per wall second; `None` while paused.
+    pub realtime: Option<f64>,
     /// Simulated time per wall time, relative to the time scale asked for, when it is
     /// noticeably below 1; `None` when on pace.
     pub slowed: Option<f64>,
@@ -223,16 +225,16 @@ pub fn hud(ui: &mut egui::Ui, info: &HudInfo) {
             if info.paused {
                 ui.label(RichText::new("PAUSED").strong().color(Color32::YELLOW));
             }
-            if let Some(pace) = info.slowed {
-                ui.label(
-                    RichText::new(if pace >= 0.1 {
-                        format!("slowed: x{pace:.1}")
-                    } else {
-                        format!("slowed: x{pace:.2}")
-                    })
-                    .strong()
-                    .color(Color32::from_rgb(255, 180, 80)),
-                );
+            if let Some(factor) = info.realtime {
+                let digits = if factor >= 0.1 { 1 } else { 2 };
+                let text = format!("real time x{factor:.digits$}");
+                ui.label(match info.slowed {
+                    Some(pace) => RichText::new(format!("{text}   slowed: x{pace:.digits$}"))
+                        .strong()
+                        .monospace()
+                        .color(Color32::from_rgb(255, 180, 80)),
+                    None => mono(text),
+                });
             }
             ui.label(
                 RichText::new("H or ? for help")

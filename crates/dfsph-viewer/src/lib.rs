@@ -5,8 +5,9 @@
 //! change every solver parameter live, with a HUD, live plots and a colour legend.
 //!
 //! The viewer only uses the solver's public API: input becomes [`dfsph::Action`]s applied
-//! between steps ([`input`]), and each frame advances a fixed slice of simulated time within a
-//! wall-time budget ([`clock`]). All particles are drawn as one textured mesh ([`render`]).
+//! between steps ([`input`]); the simulation steps on its own thread, on the wall clock, while
+//! each frame is drawn ([`stepper`]). All particles are drawn as one textured mesh
+//! ([`render`]).
 //!
 //! ```no_run
 //! let scene = dfsph::scene::builtin("dam-break").unwrap();
@@ -21,12 +22,12 @@ use anyhow::anyhow;
 use eframe::egui;
 
 pub mod app;
-pub mod clock;
 pub mod export;
 pub mod hud;
 pub mod input;
 pub mod panel;
 pub mod render;
+pub mod stepper;
 
 /// What to show and how long.
 #[derive(Clone, Debug)]

@@ -1,0 +1,320 @@
+//! The simulation steps on a thread of its own while the window draws.
+//!
+//! A frame hands the simulation to the stepping thread when it has read what it draws, and
+//! takes it back at the start of the next frame: the steps run while egui tessellates and the
+//! GPU (or the software rasteriser) draws, so a slow frame does not slow the water, and a
+//! slow step holds a frame up by at most the one step in progress. Everything the viewer does
+//! to the simulation (actions, resets, the single step, reading it for the HUD, plots,
+//! recordings and files) happens while it is home, between steps, exactly as before.
+//!
+//! The stepping thread keeps simulated time on the wall clock ([`Pacer`]): it never runs
+//! ahead of `time scale × wall time`, and what it cannot keep up with is dropped rather than
+//! owed, so a slow scene runs slower than real time instead of falling ever further behind.
+
+use std::ops::{Deref, DerefMut};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use dfsph::{Simulation, StepStats};
+
+/// How far simulated time may lag the wall clock before the rest is dropped, in wall
+/// seconds: a few frames' worth, so that one slow frame is caught up and a slow scene is not.
+const MAX_LAG: f64 = 0.05;
+/// How long the stepping thread waits before looking again when it is ahead of the clock.
+const AHEAD_NAP: Duration = Duration::from_micros(500);
+
+/// Real-time pacing: how much simulated time the stepping may cover after `wall` seconds
+/// away, given what it was behind (positive) or ahead (negative) when it left.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Pacer {
+    /// Simulated seconds owed from before (negative: the last step ran ahead).
+    pub carry: f64,
+}
+
+impl Pacer {
+    /// Simulated seconds the stepping may have covered after `wall` seconds at `time_scale`.
+    pub fn allowed(&self, wall: f64, time_scale: f64) -> f64 {
+        self.carry + time_scale * wall
+    }
+
+    /// After covering `simulated` seconds in `wall` seconds at `time_scale`: carry the
+    /// difference, up to [`MAX_LAG`] of wall time behind (the rest is dropped, and returned)
+    /// and one step ahead.
+    pub fn settle(&mut self, simulated: f64, wall: f64, time_scale: f64) -> f64 {
+        let owed = self.allowed(wall, time_scale) - simulated;
+        let most = MAX_LAG * time_scale;
+        self.carry = owed.min(most);
+        (owed - most).max(0.0)
+    }
+}
+
+/// What the stepping thread is given: the simulation and how to pace it.
+struct Job {
+    sim: Box<Simulation>,
+    time_scale: f64,
+    pacer: Pacer,
+}
+
+/// What comes back: the simulation, the steps taken and how long they took.
+struct Returned {
+    sim: Box<Simulation>,
+    steps: Vec<StepStats>,
+    simulated: f64,
+    wall: f64,
+}
+
+/// What a frame learns when it takes the simulation back.
+#[derive(Debug, Default)]
+pub struct Away {
+    /// The steps taken while away, in order.
+    pub steps: Vec<StepStats>,
+    /// Simulated seconds they covered.
+    pub simulated: f64,
+    /// Wall seconds the simulation was away.
+    pub wall: f64,
+    /// Simulated seconds owed but dropped because the stepping fell behind.
+    pub dropped: f64,
+}
+
+/// The simulation, at home (the window reads and changes it) or away (stepping). It
+/// dereferences to the simulation while at home; the window takes it back
+/// ([`Self::bring_home`]) before anything reads it in a frame.
+pub struct Stepper {
+    home: Option<Box<Simulation>>,
+    jobs: Option<mpsc::Sender<Job>>,
+    returns: mpsc::Receiver<Returned>,
+    stop: Arc<AtomicBool>,
+    pacer: Pacer,
+    time_scale: f64,
+    worker: Option<JoinHandle<()>>,
+}
+
+impl Stepper {
+    /// Start the stepping thread, with `sim` at home.
+    pub fn new(sim: Simulation) -> Self {
+        let (jobs, inbox) = mpsc::channel::<Job>();
+        let (outbox, returns) = mpsc::channel();
+        let stop = Arc::new(AtomicBool::new(false));
+        let stop_flag = Arc::clone(&stop);
+        let worker = std::thread::Builder::new()
+            .name("dfsph2d-stepping".into())
+            .spawn(move || {
+                for job in inbox {
+                    if outbox.send(step_paced(job, &stop_flag)).is_err() {
+                        break;
+                    }
+                }
+            })
+            .expect("a thread starts");
+        Self {
+            home: Some(Box::new(sim)),
+            jobs: Some(jobs),
+            returns,
+            stop,
+            pacer: Pacer::default(),
+            time_scale: 1.0,
+            worker: Some(worker),
+        }
+    }
+
+    /// Replace the simulation (a reset or another scene); the pacing starts afresh.
+    pub fn replace(&mut self, sim: Simulation) {
+        self.bring_home();
+        self.home = Some(Box::new(sim));
+        self.pacer = Pacer::default();
+    }
+
+    /// Forget what the pacing owed (after a pause).
+    pub fn reset_pace(&mut self) {
+        self.pacer = Pacer::default();
+    }
+
+    /// Hand the simulation to the stepping thread, to step at `time_scale` × real time until
+    /// [`Self::bring_home`].
+    pub fn send_away(&mut self, time_scale: f64) {
+        let (Some(sim), Some(jobs)) = (self.home.take(), &self.jobs) else {
+            return;
+        };
+        if time_scale != self.time_scale {
+            self.pacer = Pacer::default();
+            self.time_scale = time_scale;
+        }
+        self.stop.store(false, Ordering::Release);
+        let job = Job {
+            sim,
+            time_scale,
+            pacer: self.pacer,
+        };
+        if let Err(mpsc::SendError(job)) = jobs.send(job) {
+            // The thread is gone (it panicked while stepping before): keep stepping nothing.
+            self.home = Some(job.sim);
+        }
+    }
+
+    /// Take the simulation back (the step in progress ends first) and say what it did while
+    /// away. A panic in a step reaches the caller here, as it would have on this thread.
+    pub fn bring_home(&mut self) -> Away {
+        if self.home.is_some() {
+            return Away::default();
+        }
+        self.stop.store(true, Ordering::Release);
+        match self.returns.recv() {
+            Ok(back) => {
+                self.home = Some(back.sim);
+                let dropped = self
+                    .pacer
+                    .settle(back.simulated, back.wall, self.time_scale);
+                Away {
+                    steps: back.steps,
+                    simulated: back.simulated,
+                    wall: back.wall,
+                    dropped,
+                }
+            }
+            Err(_) => {
+                let worker = self.worker.take().expect("the stepping thread was started");
+                match worker.join() {
+                    Err(panic) => std::panic::resume_unwind(panic),
+                    Ok(()) => unreachable!("the stepping thread ends only when told to"),
+                }
+            }
+        }
+    }
+}
+
+/// Step `job`'s simulation on the wall clock until `stop` is set.
+fn step_paced(job: Job, stop: &AtomicBool) -> Returned {
+    let Job {
+        mut sim,
+        time_scale,
+        pacer,
+    } = job;
+    let start = Instant::now();
+    let mut steps = Vec::new();
+    let mut simulated = 0.0;
+    while !stop.load(Ordering::Acquire) {
+        if simulated >= pacer.allowed(start.elapsed().as_secs_f64(), time_scale) {
+            std::thread::sleep(AHEAD_NAP);
+            continue;
+        }
+        let s = *sim.step();
+        steps.push(s);
+        if !(s.dt.is_finite() && s.dt > 0.0) {
+            // A broken step must not spin this loop: wait to be called home.
+            while !stop.load(Ordering::Acquire) {
+                std::thread::sleep(AHEAD_NAP);
+            }
+            break;
+        }
+        simulated += s.dt;
+    }
+    Returned {
+        sim,
+        steps,
+        simulated,
+        wall: start.elapsed().as_secs_f64(),
+    }
+}
+
+impl Deref for Stepper {
+    type Target = Simulation;
+    fn deref(&self) -> &Simulation {
+        self.home
+            .as_deref()
+            .expect("the simulation is home while the window reads it")
+    }
+}
+
+impl DerefMut for Stepper {
+    fn deref_mut(&mut self) -> &mut Simulation {
+        self.home
+            .as_deref_mut()
+            .expect("the simulation is home while the window changes it")
+    }
+}
+
+impl Drop for Stepper {
+    fn drop(&mut self) {
+        if self.home.is_none() && self.worker.is_some() {
+            self.stop.store(true, Ordering::Release);
+            let _ = self.returns.recv();
+        }
+        // Closing the channel ends the thread.
+        self.jobs = None;
+        if let Some(worker) = self.worker.take() {
+            let _ = worker.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_pacer_carries_a_short_lag_and_drops_a_long_one() {
+        let mut p = Pacer::default();
+        // 20 ms away at real time, 15 ms simulated: 5 ms owed, carried.
+        assert_eq!(p.settle(0.015, 0.020, 1.0), 0.0);
+        assert!((p.carry - 0.005).abs() < 1e-12);
+        assert!((p.allowed(0.010, 1.0) - 0.015).abs() < 1e-12);
+        // A slow scene: 1 s away, 0.1 s simulated; at most MAX_LAG is carried.
+        let dropped = p.settle(0.1, 1.0, 1.0);
+        assert!((p.carry - MAX_LAG).abs() < 1e-12);
+        assert!((dropped - (0.905 - MAX_LAG)).abs() < 1e-9, "{dropped}");
+        // Running ahead (a step longer than the time away) is carried as negative.
+        let mut p = Pacer::default();
+        assert_eq!(p.settle(0.004, 0.001, 1.0), 0.0);
+        assert!((p.carry + 0.003).abs() < 1e-12);
+        // Twice real time allows twice the simulated time.
+        assert!((Pacer::default().allowed(0.5, 2.0) - 1.0).abs() < 1e-12);
+    }
+
+    fn small_dam_break() -> Simulation {
+        let mut scene = dfsph::scene::builtin("dam-break").unwrap();
+        scene.particle_radius = 0.04;
+        Simulation::new(&scene).unwrap()
+    }
+
+    #[test]
+    fn steps_taken_away_are_reported_and_keep_to_the_clock() {
+        let mut stepper = Stepper::new(small_dam_break());
+        stepper.send_away(1.0);
+        std::thread::sleep(Duration::from_millis(200));
+        let away = stepper.bring_home();
+        assert!(!away.steps.is_empty(), "{away:?}");
+        assert_eq!(stepper.step_count(), away.steps.len() as u64);
+        let covered: f64 = away.steps.iter().map(|s| s.dt).sum();
+        assert!((covered - away.simulated).abs() < 1e-9);
+        assert!((stepper.time() - away.simulated).abs() < 1e-6);
+        // Never ahead of the wall clock by more than the last step.
+        let last = away.steps.last().unwrap().dt;
+        assert!(away.simulated <= away.wall + last + 1e-9, "{away:?}");
+        // At home it stays put.
+        let t = stepper.time();
+        std::thread::sleep(Duration::from_millis(20));
+        assert_eq!(stepper.bring_home().steps.len(), 0);
+        assert_eq!(stepper.time(), t);
+    }
+
+    #[test]
+    fn a_stepped_simulation_gives_the_bits_of_one_stepped_here() {
+        let mut stepper = Stepper::new(small_dam_break());
+        let mut steps = 0;
+        while steps < 30 {
+            stepper.send_away(4.0);
+            std::thread::sleep(Duration::from_millis(5));
+            steps += stepper.bring_home().steps.len();
+        }
+        let mut here = small_dam_break();
+        for _ in 0..steps {
+            here.step();
+        }
+        assert_eq!(
+            dfsph::recording::fingerprint(&stepper),
+            dfsph::recording::fingerprint(&here)
+        );
+    }
+}
