@@ -380,7 +380,7 @@ fn build_simulation(scene: Scene, requested_max_particles: usize) -> anyhow::Res
     Simulation::new(&scene).map_err(|e| anyhow!("scene `{}`: {e}", scene.name))
 }
 
-/// `scene` with the viewer's pour budget in `max_particles` (see [`build_simulation`]).
+/// `scene` with the viewer's pour budget in `max_particles` (see `build_simulation`).
 pub fn budgeted_scene(mut scene: Scene, requested_max_particles: usize) -> Scene {
     let n = scene.fluid_particle_count();
     scene.max_particles = requested_max_particles.min((2 * n).max(n + 2000)).max(n);

@@ -40,7 +40,7 @@ impl Pacer {
     }
 
     /// After covering `simulated` seconds in `wall` seconds at `time_scale`: carry the
-    /// difference, up to [`MAX_LAG`] of wall time behind (the rest is dropped, and returned)
+    /// difference, up to `MAX_LAG` (50 ms) of wall time behind (the rest is dropped, and returned)
     /// and one step ahead.
     pub fn settle(&mut self, simulated: f64, wall: f64, time_scale: f64) -> f64 {
         let owed = self.allowed(wall, time_scale) - simulated;
