@@ -369,6 +369,23 @@ impl<'a> Sweeps<'a> {
     }
 }
 
+/// The warm start of both solves: the stiffness each starts from is a share
+/// ([`SolverSettings::jacobi_warm_share`](crate::settings::SolverSettings::jacobi_warm_share))
+/// of the previous step's, times `scale` (1 for κᵛ; Δt for the stored p/ρ0, whence κ = Δt·p/ρ0),
+/// its negative part dropped, and applied to the velocities; without a warm start, zero.
+fn warm_start(step: &StepContext, total: &mut [f32], scale: f32, velocity: &mut [Vec2]) {
+    if step.settings.warm_start {
+        let w = step.settings.jacobi_warm_share;
+        total
+            .par_iter_mut()
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
+            .for_each(|k| *k = k.max(0.0) * scale * w);
+        apply_pressure(step.volume, total, velocity, &step.nb);
+    } else {
+        total.iter_mut().for_each(|k| *k = 0.0);
+    }
+}
+
 /// Divergence solve (TVCG 2017, Algorithm 2): make `Dρ/Dt = 0` so the velocity field is
 /// divergence-free. The error is the average relative density change over one step,
 /// `step.dt`. With the warm start, a share of the previous step's κᵛ is applied first.
@@ -377,18 +394,9 @@ pub fn divergence_solve(
     fluid: &mut FluidParticles,
     scratch: &mut JacobiScratch,
 ) -> SolveReport {
-    let (volume, nb, settings) = (step.volume, &step.nb, step.settings);
+    let (nb, settings) = (&step.nb, step.settings);
     let mut total = std::mem::take(&mut fluid.divergence_stiffness);
-    if settings.warm_start {
-        let w = settings.jacobi_warm_share;
-        total
-            .par_iter_mut()
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .for_each(|k| *k = k.max(0.0) * w);
-        apply_pressure(volume, &total, &mut fluid.velocity, nb);
-    } else {
-        total.iter_mut().for_each(|k| *k = 0.0);
-    }
+    warm_start(step, &mut total, 1.0, &mut fluid.velocity);
     // Particles with too few neighbours for a meaningful rate are left out: their residual
     // is max(−∞ + rate, 0) = 0.
     scratch.source.resize(fluid.len(), 0.0);
@@ -429,21 +437,12 @@ pub fn density_solve(
     fluid: &mut FluidParticles,
     scratch: &mut JacobiScratch,
 ) -> SolveReport {
-    let (volume, dt, nb, settings) = (step.volume, step.dt, &step.nb, step.settings);
+    let (dt, settings) = (step.dt, step.settings);
     let max_correction = settings.max_compression_correction(dt, step.spacing);
     // κ = Δt·p/ρ0; the stored pressure does not depend on Δt, so it carries over when Δt
     // changes.
     let mut total = std::mem::take(&mut fluid.pressure_over_rho0);
-    if settings.warm_start {
-        let w = settings.jacobi_warm_share;
-        total
-            .par_iter_mut()
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .for_each(|p| *p = p.max(0.0) * dt * w);
-        apply_pressure(volume, &total, &mut fluid.velocity, nb);
-    } else {
-        total.iter_mut().for_each(|k| *k = 0.0);
-    }
+    warm_start(step, &mut total, dt, &mut fluid.velocity);
     scratch.source.resize(fluid.len(), 0.0);
     scratch
         .source
