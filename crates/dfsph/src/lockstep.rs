@@ -164,10 +164,10 @@ const JOIN_WINDOW: Duration = Duration::from_micros(200);
 /// pool's other workers are doing.
 ///
 /// Progress does not depend on them: the other workers are invited with
-/// `par::invite_every_worker` (rayon's `spawn_broadcast`), which does not wait for them; the members are fixed when the
-/// door closes, and a barrier waits only for members, which run nothing but `body` until it
-/// returns (a barrier spins, then yields its core, and never runs other tasks). An
-/// invitation taken after the door closed returns at once.
+/// `par::invite_every_worker` (rayon's `spawn_broadcast`), which does not wait for them; the
+/// members are fixed when the door closes, and a barrier waits only for members, which run
+/// nothing but `body` until it returns (a barrier spins, then yields its core, and never runs
+/// other tasks). An invitation taken after the door closed returns at once.
 ///
 /// If one member panics, the others panic at their next [`Team::wait`] rather than wait
 /// for it forever, and the first panic reaches the caller once every member has stopped.

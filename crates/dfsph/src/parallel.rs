@@ -25,20 +25,20 @@ use std::{sync::atomic::AtomicBool, sync::Arc, time::Instant};
 /// light pass there on one worker; 512 took 3 % less.)
 pub const LIGHT_PASS_MIN_ITEMS: usize = 2 * 1024;
 
-#[cfg(feature = "parallel")]
 /// Polls of the pool that find nothing before a worker at hand starts giving its core away
 /// between polls (a few hundred µs): the serial stretches of a step are tens of µs, but a
 /// pool with more workers than cores must not have them spin through the time slices of
 /// the worker that runs the step.
+#[cfg(feature = "parallel")]
 const IDLE_POLLS_BEFORE_YIELD: u32 = 1 << 12;
 
-#[cfg(feature = "parallel")]
 /// How long the worker that runs the work waits for the others to join
 /// [`with_workers_at_hand`] before it starts without those still missing. A worker that is
 /// polling for tasks joins within a microsecond or two; one that has gone to sleep takes
 /// 10–50 µs to wake on the virtual machine of docs/PERFORMANCE.md, longer than it would
 /// save in a step with a serial stretch in between (the validation runs, which measure
 /// the front between steps: 6–9 % slower with a wait for every worker).
+#[cfg(feature = "parallel")]
 const JOIN_WINDOW: Duration = Duration::from_micros(5);
 
 /// How long after a step ends the pool's idle workers are taken to be still polling for
@@ -94,7 +94,6 @@ pub fn with_workers_at_hand<R: Send>(work: impl FnOnce() -> R + Send) -> R {
     return work();
 }
 
-#[cfg(feature = "parallel")]
 /// [`with_workers_at_hand`] on `pool` (the global pool where `None`), called from outside
 /// it, counting the workers standing by in `standing_by`.
 ///
@@ -108,6 +107,7 @@ pub fn with_workers_at_hand<R: Send>(work: impl FnOnce() -> R + Send) -> R {
 /// waking, as without this function. A worker already running such work or standing by
 /// for another call does not stand by again, so two calls from different threads cannot
 /// hold each other's workers.
+#[cfg(feature = "parallel")]
 fn run_at_hand<R: Send>(
     pool: Option<&rayon::ThreadPool>,
     work: impl FnOnce() -> R + Send,
@@ -152,13 +152,13 @@ fn run_at_hand<R: Send>(
     }
 }
 
-#[cfg(feature = "parallel")]
 /// Set in [`AtHand::door`] once the work has started; the bits below count the workers that
 /// joined before.
+#[cfg(feature = "parallel")]
 const CLOSED: usize = 1 << (usize::BITS - 1);
 
-#[cfg(feature = "parallel")]
 /// One [`run_at_hand`] call, as its invitations see it.
+#[cfg(feature = "parallel")]
 struct AtHand {
     door: AtomicUsize,
     /// Set when the work has returned (or unwound).
@@ -232,8 +232,8 @@ impl Invitations {
     }
 }
 
-#[cfg(feature = "parallel")]
 /// Poll the pool for tasks, running them, until `ready()`.
+#[cfg(feature = "parallel")]
 fn wait_until(ready: impl Fn() -> bool) {
     let mut idle = 0u32;
     while !ready() {
@@ -248,8 +248,8 @@ fn wait_until(ready: impl Fn() -> bool) {
     }
 }
 
-#[cfg(feature = "parallel")]
 /// Ends a [`run_at_hand`] call on the worker that ran its work, returned or unwinding.
+#[cfg(feature = "parallel")]
 struct EndOnDrop<'a> {
     done: &'a AtomicBool,
     was_busy: bool,
