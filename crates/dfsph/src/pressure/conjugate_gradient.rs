@@ -141,6 +141,19 @@ struct CgScratch {
     pub rate: Vec<f32>,
 }
 
+/// `y_i += a·x_i`: a step of `a` along a search direction, for stiffnesses, velocities and
+/// rates alike.
+fn add_scaled<T>(y: &mut [T], x: &[T], a: f32)
+where
+    T: Copy + Send + Sync + std::ops::AddAssign,
+    f32: std::ops::Mul<T, Output = T>,
+{
+    y.par_iter_mut()
+        .zip(x.par_iter())
+        .with_min_len(LIGHT_PASS_MIN_ITEMS)
+        .for_each(|(y, &x)| *y += a * x);
+}
+
 fn dot3(a: &[f32], b: &[f32], m: &[f32]) -> f64 {
     reduce::sum_and_max_of(a.len(), |i| a[i] as f64 * b[i] as f64 * m[i] as f64).0
 }
@@ -268,29 +281,10 @@ fn density_solve(
         let alpha = (rz / pq) as f32;
         energy[iterations as usize % DELAY] = rz / pq * rz;
         let (dir, dv, dr) = (&scratch.direction, &scratch.dir_velocity, &scratch.dir_rate);
-        total
-            .par_iter_mut()
-            .zip(dir.par_iter())
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .for_each(|(k, &p)| *k += alpha * p);
-        fluid
-            .velocity
-            .par_iter_mut()
-            .zip(dv.par_iter())
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .for_each(|(v, &w)| *v += alpha * w);
-        scratch
-            .rate
-            .par_iter_mut()
-            .zip(dr.par_iter())
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .for_each(|(r, &q)| *r += alpha * q);
-        scratch
-            .residual
-            .par_iter_mut()
-            .zip(dr.par_iter())
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .for_each(|(e, &q)| *e += alpha * dt * q);
+        add_scaled(&mut total, dir, alpha);
+        add_scaled(&mut fluid.velocity, dv, alpha);
+        add_scaled(&mut scratch.rate, dr, alpha);
+        add_scaled(&mut scratch.residual, dr, alpha * dt);
         let (active, residual) = (&scratch.active, &scratch.residual);
         let rz_new = reduce::sum_and_max_of(n, |i| {
             (active[i] * factor[i] * precondition * residual[i]) as f64 * residual[i] as f64
