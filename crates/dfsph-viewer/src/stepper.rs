@@ -194,21 +194,20 @@ fn step_paced(job: Job, stop: &AtomicBool) -> Returned {
     let start = Instant::now();
     let mut steps = Vec::new();
     let mut simulated = 0.0;
+    // After a broken step (a non-finite or zero Δt) nothing more is stepped: this loop must
+    // not spin on it, and waits to be called home.
+    let mut broken = false;
     while !stop.load(Ordering::Acquire) {
-        if simulated >= pacer.allowed(start.elapsed().as_secs_f64(), time_scale) {
+        if broken || simulated >= pacer.allowed(start.elapsed().as_secs_f64(), time_scale) {
             std::thread::sleep(AHEAD_NAP);
             continue;
         }
         let s = *sim.step();
         steps.push(s);
-        if !(s.dt.is_finite() && s.dt > 0.0) {
-            // A broken step must not spin this loop: wait to be called home.
-            while !stop.load(Ordering::Acquire) {
-                std::thread::sleep(AHEAD_NAP);
-            }
-            break;
+        broken = !(s.dt.is_finite() && s.dt > 0.0);
+        if !broken {
+            simulated += s.dt;
         }
-        simulated += s.dt;
     }
     Returned {
         sim,
