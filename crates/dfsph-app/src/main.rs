@@ -377,7 +377,10 @@ fn validate_cmd(args: ValidateArgs) -> Result<(), Failure> {
             .build_global()
             .map_err(|e| Failure::input(format!("cannot start {n} threads: {e}")))?;
     }
-    let settings = validate::Settings { quick: args.quick };
+    let settings = validate::Settings {
+        quick: args.quick,
+        perturb: None,
+    };
     for scene in validate::scenes(settings) {
         check_memory(
             &format!(
@@ -401,13 +404,25 @@ fn validate_cmd(args: ValidateArgs) -> Result<(), Failure> {
         ))
     })?;
     let outcome = validate::run(&args.out, settings).map_err(Failure::runtime)?;
-    println!(
-        "validation: {} checks, {} failed ({:.0} s); report: {}",
-        outcome.checks,
-        outcome.failed,
-        outcome.wall_s,
-        terminal_safe(&outcome.report.display().to_string())
-    );
+    let report = terminal_safe(&outcome.report.display().to_string());
+    if args.quick {
+        println!(
+            "validation (quick): {} smoke checks, {} failed ({:.0} s); {} comparisons with \
+             experiments reported, not checked at this resolution (run `validate` without \
+             --quick); report: {report}",
+            outcome.checks, outcome.failed, outcome.wall_s, outcome.reported_only
+        );
+    } else {
+        println!(
+            "validation: {} checks, {} failed ({:.0} s); report: {report}",
+            outcome.checks, outcome.failed, outcome.wall_s
+        );
+    }
+    validate_exit(&outcome)
+}
+
+/// `validate`'s exit: 1, naming the count, when a counted check failed.
+fn validate_exit(outcome: &validate::Outcome) -> Result<(), Failure> {
     if outcome.failed > 0 {
         return Err(Failure {
             code: 1,
@@ -415,9 +430,35 @@ fn validate_cmd(args: ValidateArgs) -> Result<(), Failure> {
                 "{} of {} validation checks failed; see `{}`",
                 outcome.failed,
                 outcome.checks,
-                outcome.report.display()
+                terminal_safe(&outcome.report.display().to_string())
             ),
         });
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `validate --quick` exits 1 when the physics is broken: gravity 5 % too strong makes
+    /// the resting tank's pressure 5 % above ρ0·g·(H − y), which its smoke check (1 %) sees.
+    /// (A healthy build exiting 0 is `tests/validate.rs`.)
+    #[test]
+    fn quick_validation_exits_1_when_a_smoke_check_breaks() {
+        let dir = tempfile::tempdir().unwrap();
+        let settings = validate::Settings {
+            quick: true,
+            perturb: Some(|scene| scene.gravity[1] *= 1.05),
+        };
+        let outcome = validate::run(dir.path(), settings).unwrap();
+        let report = std::fs::read_to_string(&outcome.report).unwrap();
+        let failed_row = report
+            .lines()
+            .find(|l| l.contains("output pressure of every particle") && l.contains("**FAIL**"));
+        assert!(failed_row.is_some(), "{report}");
+        let exit = validate_exit(&outcome).unwrap_err();
+        assert_eq!(exit.code, 1);
+        assert!(exit.message.contains("validation checks failed"));
+    }
 }

@@ -1,6 +1,7 @@
-//! `dfsph2d validate --quick --out DIR` as a user runs it: the report exists with its table of
-//! checks, every plot it references exists and is a valid PNG, and the exit code says whether
-//! a check failed (the report states PASS/FAIL per check).
+//! `dfsph2d validate --quick --out DIR` as a user runs it: on a healthy build it exits 0, the
+//! report exists with its table of checks (the smoke checks PASS, the comparisons that need
+//! the full resolution reported but not checked), and every plot it references exists and is
+//! a valid PNG. (Exit 1 on broken physics: the unit test in `src/main.rs`.)
 
 use std::process::Command;
 
@@ -16,8 +17,13 @@ fn quick_validation_writes_a_consistent_report() {
         .output()
         .expect("dfsph2d runs");
     let stderr = String::from_utf8_lossy(&output.stderr);
+    let stdout = String::from_utf8_lossy(&output.stdout);
     let code = output.status.code().expect("exited normally");
-    assert!(code == 0 || code == 1, "exit code {code}: {stderr}");
+    assert_eq!(
+        code, 0,
+        "a healthy build's smoke checks fail:\n{stdout}\n{stderr}"
+    );
+    assert!(stdout.contains("smoke checks, 0 failed"), "{stdout}");
 
     let report = std::fs::read_to_string(out.join("report.md"))
         .unwrap_or_else(|e| panic!("no report.md ({e}): {stderr}"));
@@ -33,16 +39,16 @@ fn quick_validation_writes_a_consistent_report() {
         .take_while(|l| l.starts_with('|'))
         .collect();
     assert!(rows.len() >= 15, "only {} checks:\n{report}", rows.len());
-    let mut failed = 0;
+    let (mut smoke, mut reported) = (0, 0);
     for row in &rows {
         let cells: Vec<&str> = row.trim_matches('|').split(" | ").collect();
         let result = cells.last().unwrap().trim();
-        assert!(
-            result == "PASS" || result == "**FAIL**",
-            "row without a result: {row}"
-        );
-        if result != "PASS" {
-            failed += 1;
+        match result {
+            "PASS" => smoke += 1,
+            "(pass; not checked in quick mode)" | "(fail; not checked in quick mode)" => {
+                reported += 1
+            }
+            _ => panic!("row without a passing or reported result: {row}"),
         }
         let tolerance = cells[cells.len() - 2];
         assert!(
@@ -50,17 +56,12 @@ fn quick_validation_writes_a_consistent_report() {
             "row without a tolerance: {row}"
         );
     }
-    assert_eq!(
-        code == 0,
-        failed == 0,
-        "exit code {code} but {failed} checks failed:\n{stderr}"
+    // Both kinds are there: completion, rest and compression checks; the experiments.
+    assert!(
+        smoke >= 10 && reported >= 10,
+        "{smoke} smoke, {reported} reported"
     );
-    if failed > 0 {
-        assert!(stderr.contains("validation checks failed"), "{stderr}");
-        assert!(report.contains("overall: **FAIL**"));
-    } else {
-        assert!(report.contains("overall: **PASS**"));
-    }
+    assert!(report.contains("overall: **PASS**"));
 
     // Every referenced plot exists and decodes as a PNG of a sensible size.
     let mut plots = 0;
