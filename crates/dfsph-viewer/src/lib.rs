@@ -61,6 +61,28 @@ impl ViewerOptions {
 const HEADLESS_HINT: &str = "for headless runs use `dfsph2d run SCENE --until SECONDS --out DIR` \
      (add `--format png` for rendered frames)";
 
+/// The shared libraries winit and glutin load at run time on Linux, by Debian package: a
+/// missing one fails only when the window opens, with a message that names a library file
+/// or nothing at all.
+const LINUX_PACKAGES_HINT: &str = "on Linux the window needs X11 or Wayland and OpenGL \
+     libraries; on Debian/Ubuntu: `apt-get install libxkbcommon-x11-0 libxcursor1 libxrandr2 \
+     libxi6 libegl1 libgl1-mesa-dri` (Wayland: `libwayland-client0 libwayland-egl1 \
+     libxkbcommon0`)";
+
+/// A panic hook, as `std::panic::take_hook` returns it.
+type PanicHook = dyn Fn(&std::panic::PanicHookInfo<'_>) + Sync + Send + 'static;
+
+/// The error for a window that could not be opened: the cause, then what to install and how
+/// to run without a window.
+fn window_failure(what: &str, cause: &str) -> anyhow::Error {
+    let packages = if cfg!(all(unix, not(target_os = "macos"), not(target_os = "ios"))) {
+        format!("\n{LINUX_PACKAGES_HINT}")
+    } else {
+        String::new()
+    };
+    anyhow!("{what}: {cause}{packages}\n{HEADLESS_HINT}")
+}
+
 /// Open the viewer window and run until it is closed (or `exit_after` passes).
 ///
 /// Returns an error, without panicking, when there is no display to open a window on or the
@@ -101,6 +123,24 @@ pub fn run(opts: ViewerOptions) -> anyhow::Result<()> {
     };
     let failures: app::Failures = Rc::new(RefCell::new(Vec::new()));
     let app_failures = failures.clone();
+    // A panic on this thread while the window is open (a missing system library) becomes the
+    // one error below, with its place: the default hook would print it first as a crash
+    // report. Other threads' panics (the stepper's) keep the default hook. Put back after.
+    let default_hook: std::sync::Arc<PanicHook> = std::panic::take_hook().into();
+    let window_thread = std::thread::current().id();
+    let panic_place = std::sync::Arc::new(std::sync::Mutex::new(None::<String>));
+    {
+        let (default_hook, panic_place) = (default_hook.clone(), panic_place.clone());
+        std::panic::set_hook(Box::new(move |info| {
+            if std::thread::current().id() == window_thread {
+                if let Some(at) = info.location() {
+                    *panic_place.lock().unwrap_or_else(|e| e.into_inner()) = Some(at.to_string());
+                }
+            } else {
+                default_hook(info);
+            }
+        }));
+    }
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
         eframe::run_native(
             "dfsph2d",
@@ -113,16 +153,23 @@ pub fn run(opts: ViewerOptions) -> anyhow::Result<()> {
             }),
         )
     }));
+    std::panic::set_hook(Box::new(move |info| default_hook(info)));
     match result {
         Ok(Ok(())) => {}
         Ok(Err(e)) => {
-            return Err(anyhow!(
-                "could not open the viewer window: {e}\n{HEADLESS_HINT}"
+            return Err(window_failure(
+                "could not open the viewer window",
+                &e.to_string(),
             ))
         }
         Err(panic) => {
             let msg = panic_message(panic.as_ref());
-            return Err(anyhow!("the viewer window failed: {msg}\n{HEADLESS_HINT}"));
+            let place = panic_place.lock().unwrap_or_else(|e| e.into_inner()).take();
+            let cause = match place {
+                Some(at) => format!("{msg} (at {at})"),
+                None => msg.to_string(),
+            };
+            return Err(window_failure("the viewer window failed", &cause));
         }
     }
     let mut failures = failures.borrow_mut();
@@ -174,6 +221,19 @@ mod tests {
         let msg = format!("{err:#}");
         assert!(msg.contains("dfsph2d run"), "{msg}");
         assert!(msg.contains("DISPLAY"), "{msg}");
+    }
+
+    #[test]
+    fn a_window_failure_names_the_cause_the_packages_and_the_headless_command() {
+        let msg = format!(
+            "{:#}",
+            window_failure("the viewer window failed", "libxkbcommon-x11.so")
+        );
+        assert!(msg.starts_with("the viewer window failed: libxkbcommon-x11.so"));
+        if cfg!(target_os = "linux") {
+            assert!(msg.contains("apt-get install libxkbcommon-x11-0"), "{msg}");
+        }
+        assert!(msg.contains("dfsph2d run"), "{msg}");
     }
 
     #[test]
