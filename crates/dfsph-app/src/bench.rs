@@ -1,4 +1,4 @@
-//! `dfsph2d bench`: the standard benchmark of `BENCHMARK.md` (see `docs/PERFORMANCE.md`).
+//! `dfsph2d bench`: the standard benchmark of `docs/BENCHMARK.md` (see `docs/PERFORMANCE.md`).
 //!
 //! The dam break at several resolutions, timed from t = 0 to the case's interval with no file
 //! output, once for our solver and, when the binary is built with the `salva` feature, once for
@@ -138,7 +138,7 @@ impl Code {
 /// The solver settings of a row's dam break.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum, Serialize, Deserialize)]
 pub enum Settings {
-    /// BENCHMARK.md's (tolerances, CFL 0.2, Δt up to 5 ms, XSPH 0.01).
+    /// docs/BENCHMARK.md's (tolerances, CFL 0.2, Δt up to 5 ms, XSPH 0.01).
     #[default]
     #[value(name = "benchmark")]
     #[serde(rename = "benchmark")]
@@ -202,7 +202,7 @@ impl Size {
         }
     }
 
-    /// Standard simulated interval, s (BENCHMARK.md: 1 s at 80k, 0.5 s at 20k; 320k is cut
+    /// Standard simulated interval, s (docs/BENCHMARK.md: 1 s at 80k, 0.5 s at 20k; 320k is cut
     /// to 0.1 s so that it finishes in minutes).
     fn interval(self) -> f64 {
         match self {
@@ -299,7 +299,7 @@ pub struct Row {
     /// saved before it was recorded.
     #[serde(default)]
     pub runtime_simd: String,
-    /// The solver settings: `benchmark` (BENCHMARK.md) or `viewer` (the built-in scene's
+    /// The solver settings: `benchmark` (docs/BENCHMARK.md) or `viewer` (the built-in scene's
     /// defaults, `bench --realtime`). `benchmark` in rows saved before it was recorded.
     #[serde(default)]
     pub settings: Settings,
@@ -409,7 +409,7 @@ fn codes(asked: &[Code]) -> Result<Vec<Code>, String> {
             return Ok(vec![Code::Dfsph2d, Code::Salva2d]);
         }
         eprintln!(
-            "note: salva2d (the peer in BENCHMARK.md) is not compiled into this binary; {HOW}"
+            "note: salva2d (the peer in docs/BENCHMARK.md) is not compiled into this binary; {HOW}"
         );
         return Ok(vec![Code::Dfsph2d]);
     }

@@ -38,7 +38,7 @@ pub enum Command {
     /// Run the validation cases against experiments and write DIR/report.md with plots;
     /// exits with 1 if any check fails.
     Validate(ValidateArgs),
-    /// The standard benchmark (BENCHMARK.md, docs/PERFORMANCE.md): the dam break at several
+    /// The standard benchmark (docs/BENCHMARK.md, docs/PERFORMANCE.md): the dam break at several
     /// resolutions, with the salva2d peer when built with `--features salva`.
     Bench(crate::bench::BenchArgs),
     /// One benchmark row in its own process (used by `bench`).

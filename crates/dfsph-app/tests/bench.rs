@@ -1,6 +1,6 @@
 //! `dfsph2d bench --quick --json FILE`: the benchmark runs end to end and its JSON rows carry
 //! every documented key with sane values. No wall-time assertions: a benchmark is a command,
-//! not a test (BENCHMARK.md).
+//! not a test (docs/BENCHMARK.md).
 
 use std::process::Command;
 

@@ -443,7 +443,7 @@ fn a_very_viscous_tank_at_rest_stays_at_rest() {
 
 #[test]
 fn a_deep_column_at_the_benchmark_time_step_does_not_burst() {
-    // The narrow 400-layer column below at BENCHMARK.md's solver settings (tolerance 0.01 %,
+    // The narrow 400-layer column below at docs/BENCHMARK.md's solver settings (tolerance 0.01 %,
     // CFL 0.2, Δt up to 5 ms), 0.3 s. The first steps are long enough that the density solve's
     // linear prediction misses several percent of compression in the bottom rows, every step;
     // before steps checked their linearisation (`solver::unseen_compression`) the rows burst:

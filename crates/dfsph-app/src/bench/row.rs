@@ -44,7 +44,7 @@ pub fn run_row(args: RowArgs) -> Result<(), String> {
     Ok(())
 }
 
-/// The benchmark scene: the built-in dam break at spacing `d` with BENCHMARK.md's solver
+/// The benchmark scene: the built-in dam break at spacing `d` with docs/BENCHMARK.md's solver
 /// settings.
 pub fn bench_scene(d: f64) -> Scene {
     let mut scene = scene::builtin("dam-break").expect("the dam break is built in");
@@ -56,7 +56,7 @@ pub fn bench_scene(d: f64) -> Scene {
     scene.solver.max_iterations = 100;
     scene.solver.divergence_solve = true;
     scene.solver.warm_start = true;
-    // Our CFL factor multiplies the spacing d (Δt = cfl·d/v_max), as in BENCHMARK.md.
+    // Our CFL factor multiplies the spacing d (Δt = cfl·d/v_max), as in docs/BENCHMARK.md.
     scene.time_step = TimeStepParams {
         cfl: 0.2,
         min: 1.0e-5,
