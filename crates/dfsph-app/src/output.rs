@@ -6,6 +6,9 @@
 //! DIR/particles/index.csv     frame,time,file
 //! DIR/particles/NNNNN.csv     per snapshot (.vtu / .png when asked for)
 //! DIR/particles/particles.pvd ParaView collection of the .vtu files with their times
+//! DIR/particles/walls_NNNNN.vtu the walls (tank, obstacles, drawn walls) as boundary
+//!                             particles, VTK only, written when they changed
+//! DIR/particles/walls.pvd     ParaView collection of the walls at every frame's time
 //! DIR/.dfsph2d-manifest       every file above that this run wrote, one per line
 //! ```
 //!
@@ -166,7 +169,9 @@ fn previous_outputs(path: &Path) -> Result<Vec<String>, String> {
 fn is_our_output(name: &str) -> bool {
     match name.split_once('/') {
         Some((PARTICLES_DIR, file)) => {
-            is_frame_file(file) || matches!(file, "index.csv" | "particles.pvd")
+            is_frame_file(file)
+                || is_walls_file(file)
+                || matches!(file, "index.csv" | "particles.pvd" | "walls.pvd")
         }
         Some(_) => false,
         None => matches!(name, "scene.json" | "stats.csv" | "probes.csv"),
@@ -216,6 +221,12 @@ impl Manifest {
     }
 }
 
+/// `walls_00042.vtu`: the walls as they stood at frame 42.
+fn is_walls_file(name: &str) -> bool {
+    name.strip_prefix("walls_")
+        .is_some_and(|rest| is_frame_file(rest) && rest.ends_with(".vtu"))
+}
+
 /// `00042.csv`, `00042.vtu`, `123456.png`: a snapshot file this program writes.
 fn is_frame_file(name: &str) -> bool {
     let Some((stem, ext)) = name.rsplit_once('.') else {
@@ -236,6 +247,11 @@ pub struct FrameWriter {
     index: dfsph_io::AppendFile,
     /// Frames listed in the `particles.pvd` on disk.
     pvd_frames: usize,
+    /// The walls file of each frame (VTK output): the frame's own `walls_NNNNN.vtu` when the
+    /// boundary had changed since the last one written, else that last one.
+    wall_files: Vec<String>,
+    /// The boundary particles and bodies of the last walls file written.
+    last_walls: Option<(Vec<dfsph::Vec2>, Vec<u16>)>,
     png: RenderOptions,
     /// Step of the last frame written.
     last_step: Option<u64>,
@@ -266,6 +282,7 @@ impl FrameWriter {
         index.append(dfsph_io::INDEX_HEADER)?;
         if formats.contains(&Format::Vtk) {
             manifest.record(&format!("{PARTICLES_DIR}/particles.pvd"))?;
+            manifest.record(&format!("{PARTICLES_DIR}/walls.pvd"))?;
         }
         Ok(Self {
             dir,
@@ -273,6 +290,8 @@ impl FrameWriter {
             frames: Vec::new(),
             index,
             pvd_frames: 0,
+            wall_files: Vec::new(),
+            last_walls: None,
             png: RenderOptions {
                 width: png_width,
                 speed_max: speed_scale(scene),
@@ -302,13 +321,16 @@ impl FrameWriter {
         let frame = self.frames.len() as u32;
         let stem = format!("{frame:05}");
         let snapshot = sim.snapshot();
-        for &format in &self.formats {
+        for format in self.formats.clone() {
             let name = format!("{stem}.{}", format.extension());
             manifest.record(&format!("{PARTICLES_DIR}/{name}"))?;
             let path = self.dir.join(name);
             match format {
                 Format::Csv => dfsph_io::write_snapshot_csv(&path, &snapshot)?,
-                Format::Vtk => dfsph_io::write_vtu(&path, &snapshot)?,
+                Format::Vtk => {
+                    dfsph_io::write_vtu(&path, &snapshot)?;
+                    self.write_walls(sim, &stem, manifest)?;
+                }
                 Format::Png => {
                     dfsph_io::write_png(&path, &RenderGeometry::of(sim), &snapshot, &self.png)?
                 }
@@ -331,7 +353,34 @@ impl FrameWriter {
         Ok(())
     }
 
-    /// Rewrite `particles.pvd` (VTK output only) with every frame so far.
+    /// The walls of the frame `stem`: a new `walls_STEM.vtu` when the boundary particles
+    /// moved (a shaken tank) or changed (a wall drawn or erased) since the last one written,
+    /// else the last one again.
+    fn write_walls(&mut self, sim: &Simulation, stem: &str, manifest: &mut Manifest) -> Result<()> {
+        let (positions, bodies) = (sim.boundary_positions(), sim.boundary_bodies());
+        let unchanged = self
+            .last_walls
+            .as_ref()
+            .is_some_and(|(p, b)| p.as_slice() == positions && b.as_slice() == bodies);
+        if !unchanged {
+            let name = format!("walls_{stem}.vtu");
+            manifest.record(&format!("{PARTICLES_DIR}/{name}"))?;
+            dfsph_io::write_walls_vtu(
+                self.dir.join(&name),
+                positions,
+                bodies,
+                sim.boundary_volumes(),
+            )?;
+            self.last_walls = Some((positions.to_vec(), bodies.to_vec()));
+            self.wall_files.push(name);
+        } else {
+            let last = self.wall_files.last().cloned().unwrap_or_default();
+            self.wall_files.push(last);
+        }
+        Ok(())
+    }
+
+    /// Rewrite `particles.pvd` and `walls.pvd` (VTK output only) with every frame so far.
     fn write_pvd(&mut self) -> Result<()> {
         if !self.formats.contains(&Format::Vtk) || self.pvd_frames == self.frames.len() {
             return Ok(());
@@ -342,6 +391,13 @@ impl FrameWriter {
             .map(|f| (f.time, format!("{:05}.vtu", f.frame)))
             .collect();
         dfsph_io::write_pvd(self.dir.join("particles.pvd"), &series)?;
+        let walls: Vec<(f64, String)> = self
+            .frames
+            .iter()
+            .zip(&self.wall_files)
+            .map(|(f, file)| (f.time, file.clone()))
+            .collect();
+        dfsph_io::write_pvd(self.dir.join("walls.pvd"), &walls)?;
         self.pvd_frames = self.frames.len();
         Ok(())
     }
@@ -381,6 +437,56 @@ mod tests {
         assert!(!is_frame_file("0001.csv"));
         assert!(!is_frame_file("00001.txt"));
         assert!(!is_frame_file("notes-00001.csv"));
+    }
+
+    #[test]
+    fn walls_files_follow_the_walls() {
+        assert!(is_walls_file("walls_00003.vtu") && is_our_output("particles/walls_00003.vtu"));
+        assert!(!is_walls_file("walls_00003.csv") && !is_walls_file("walls_x.vtu"));
+
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(dir.path().join(PARTICLES_DIR)).unwrap();
+        let mut manifest = Manifest::create(dir.path()).unwrap();
+        let mut scene = dfsph::scene::builtin("dam-break").unwrap();
+        scene.particle_radius = 0.05;
+        let mut sim = Simulation::new(&scene).unwrap();
+        let mut frames =
+            FrameWriter::create(dir.path(), &[Format::Vtk], &scene, 320, &mut manifest).unwrap();
+        frames.write(&sim, &mut manifest).unwrap();
+        sim.step();
+        frames.write(&sim, &mut manifest).unwrap(); // walls unchanged: no new file
+        let wall = dfsph::Action::AddWall {
+            polyline: vec![dfsph::Vec2::new(2.0, 0.5), dfsph::Vec2::new(3.0, 0.5)],
+        };
+        assert!(sim.apply(&wall).boundary_change > 0);
+        sim.step();
+        frames.write(&sim, &mut manifest).unwrap(); // a drawn wall: a new file
+        sim.apply(&dfsph::Action::ShakeTank { direction: 1.0 });
+        sim.step();
+        frames.write(&sim, &mut manifest).unwrap(); // the tank moved: a new file
+        let boundary = sim.boundary_positions().len();
+        frames.finish().unwrap();
+
+        let pvd = std::fs::read_to_string(dir.path().join("particles/walls.pvd")).unwrap();
+        let files: Vec<&str> = pvd
+            .lines()
+            .filter_map(|l| l.split("file=\"").nth(1)?.split('"').next())
+            .collect();
+        assert_eq!(
+            files,
+            [
+                "walls_00000.vtu",
+                "walls_00000.vtu",
+                "walls_00002.vtu",
+                "walls_00003.vtu"
+            ]
+        );
+        assert!(!dir.path().join("particles/walls_00001.vtu").exists());
+        let last = std::fs::read_to_string(dir.path().join("particles/walls_00003.vtu")).unwrap();
+        assert!(
+            last.contains(&format!("NumberOfPoints=\"{boundary}\"")),
+            "{boundary}"
+        );
     }
 
     #[test]

@@ -114,7 +114,38 @@ fn run_writes_every_output_file() {
         assert!((got - want).abs() < 1e-6, "{times:?}");
     }
 
-    let mut expected_files = vec!["index.csv".to_string(), "particles.pvd".to_string()];
+    let mut expected_files = vec![
+        "index.csv".to_string(),
+        "particles.pvd".to_string(),
+        "walls.pvd".to_string(),
+        "walls_00000.vtu".to_string(),
+    ];
+    // The walls: one file, as they never moved, with every boundary particle, body 0 (the
+    // tank) for all; the walls collection lists it at every frame's time.
+    let n_boundary: usize = rows[0][14].parse().unwrap();
+    let walls = vtkio::Vtk::import(particles.join("walls_00000.vtu")).expect("vtkio reads");
+    let DataSet::UnstructuredGrid { pieces, .. } = walls.data else {
+        panic!("walls: not an UnstructuredGrid");
+    };
+    let Piece::Inline(walls) = &pieces[0] else {
+        panic!("walls: not inline");
+    };
+    assert_eq!(walls.num_points(), n_boundary);
+    let bodies = walls
+        .data
+        .point
+        .iter()
+        .find_map(|a| match a {
+            Attribute::DataArray(a) if a.name == "body" => a.data.clone().cast_into::<u32>(),
+            _ => None,
+        })
+        .expect("walls have a body array");
+    assert!(bodies.len() == n_boundary && bodies.iter().all(|&b| b == 0));
+    let walls_pvd = std::fs::read_to_string(particles.join("walls.pvd")).unwrap();
+    assert_eq!(
+        walls_pvd.matches(r#"file="walls_00000.vtu""#).count(),
+        frames.len()
+    );
     for (k, frame) in frames.iter().enumerate() {
         let stem = format!("{k:05}");
         assert_eq!(frame[0], k.to_string());

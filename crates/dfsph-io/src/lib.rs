@@ -33,4 +33,4 @@ pub use csv::{
 };
 pub use render::{render_frame, write_png, RenderGeometry, RenderOptions};
 pub use stats::{StatsCsvWriter, STATS_HEADER};
-pub use vtk::{write_pvd, write_vtu};
+pub use vtk::{write_pvd, write_vtu, write_walls_vtu};

@@ -11,7 +11,7 @@ use std::io::{self, Write};
 use std::path::Path;
 
 use anyhow::Result;
-use dfsph::Snapshot;
+use dfsph::{Snapshot, Vec2};
 
 use crate::atomic::write_atomic;
 
@@ -27,12 +27,6 @@ pub fn write_vtu(path: impl AsRef<Path>, snapshot: &Snapshot) -> Result<()> {
 pub fn write_vtu_to(w: &mut dyn Write, snapshot: &Snapshot) -> io::Result<()> {
     let n = snapshot.position.len();
     let get = |v: &[f32], i: usize| v.get(i).copied().unwrap_or(f32::NAN);
-
-    let points: Vec<f32> = snapshot
-        .position
-        .iter()
-        .flat_map(|p| [p.x, p.y, 0.0])
-        .collect();
     let velocity: Vec<f32> = (0..n)
         .flat_map(|i| {
             let v = snapshot.velocity.get(i).copied().unwrap_or_default();
@@ -44,6 +38,68 @@ pub fn write_vtu_to(w: &mut dyn Write, snapshot: &Snapshot) -> io::Result<()> {
     let id: Vec<u32> = (0..n)
         .map(|i| snapshot.id.get(i).copied().unwrap_or(i as u32))
         .collect();
+    write_points(
+        w,
+        &snapshot.position,
+        r#"Scalars="density" Vectors="velocity""#,
+        &[
+            ("Float32", "velocity", 3, bytes_f32(&velocity)),
+            ("Float32", "density", 1, bytes_f32(&density)),
+            ("Float32", "pressure", 1, bytes_f32(&pressure)),
+            ("UInt32", "id", 1, bytes_u32(&id)),
+        ],
+    )
+}
+
+/// Write the walls the fluid feels as a `.vtu` of points: every boundary particle (the tank's
+/// walls, the scene's obstacles, walls drawn in the viewer) at `positions`, with point data
+/// `body` (0 = the tank, then one number per obstacle or drawn wall, `body`) and `volume`
+/// (the particle's boundary volume Ψ, m², Akinci et al. 2012).
+pub fn write_walls_vtu(
+    path: impl AsRef<Path>,
+    positions: &[Vec2],
+    body: &[u16],
+    volume: &[f32],
+) -> Result<()> {
+    write_atomic(path, |w| write_walls_vtu_to(w, positions, body, volume))
+}
+
+/// The `.vtu` document of [`write_walls_vtu`], written to `w`.
+pub fn write_walls_vtu_to(
+    w: &mut dyn Write,
+    positions: &[Vec2],
+    body: &[u16],
+    volume: &[f32],
+) -> io::Result<()> {
+    let n = positions.len();
+    let body: Vec<u32> = (0..n)
+        .map(|i| body.get(i).copied().unwrap_or(0).into())
+        .collect();
+    let volume: Vec<f32> = (0..n)
+        .map(|i| volume.get(i).copied().unwrap_or(f32::NAN))
+        .collect();
+    write_points(
+        w,
+        positions,
+        r#"Scalars="body""#,
+        &[
+            ("UInt32", "body", 1, bytes_u32(&body)),
+            ("Float32", "volume", 1, bytes_f32(&volume)),
+        ],
+    )
+}
+
+/// A `.vtu` of `positions` (z = 0), each point its own vertex cell, with the point data
+/// `arrays` (VTK type, name, components, little-endian bytes); `defaults` names the active
+/// scalars and vectors.
+fn write_points(
+    w: &mut dyn Write,
+    positions: &[Vec2],
+    defaults: &str,
+    arrays: &[(&str, &str, usize, Vec<u8>)],
+) -> io::Result<()> {
+    let n = positions.len();
+    let points: Vec<f32> = positions.iter().flat_map(|p| [p.x, p.y, 0.0]).collect();
     let connectivity: Vec<i64> = (0..n as i64).collect();
     let offsets: Vec<i64> = (1..=n as i64).collect();
     let types: Vec<u8> = vec![VTK_VERTEX; n];
@@ -55,14 +111,10 @@ pub fn write_vtu_to(w: &mut dyn Write, snapshot: &Snapshot) -> io::Result<()> {
     )?;
     writeln!(w, "  <UnstructuredGrid>")?;
     writeln!(w, r#"    <Piece NumberOfPoints="{n}" NumberOfCells="{n}">"#)?;
-    writeln!(
-        w,
-        r#"      <PointData Scalars="density" Vectors="velocity">"#
-    )?;
-    data_array(w, "Float32", Some("velocity"), 3, &bytes_f32(&velocity))?;
-    data_array(w, "Float32", Some("density"), 1, &bytes_f32(&density))?;
-    data_array(w, "Float32", Some("pressure"), 1, &bytes_f32(&pressure))?;
-    data_array(w, "UInt32", Some("id"), 1, &bytes_u32(&id))?;
+    writeln!(w, "      <PointData {defaults}>")?;
+    for (ty, name, components, bytes) in arrays {
+        data_array(w, ty, Some(name), *components, bytes)?;
+    }
     writeln!(w, "      </PointData>")?;
     writeln!(w, "      <Points>")?;
     data_array(w, "Float32", None, 3, &bytes_f32(&points))?;
@@ -272,6 +324,40 @@ mod tests {
         }
         seen.sort();
         assert_eq!(seen, ["density", "id", "pressure", "velocity"]);
+    }
+
+    #[test]
+    fn walls_read_back_with_vtkio_with_their_bodies_and_volumes() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("walls_00000.vtu");
+        let positions = [
+            Vec2::new(-0.01, 0.5),
+            Vec2::new(1.2, 0.3),
+            Vec2::new(1.3, 0.3),
+        ];
+        write_walls_vtu(&path, &positions, &[0, 2, 2], &[1e-4, 2e-4, 3e-4]).unwrap();
+        let vtk = vtkio::Vtk::import(&path).expect("vtkio reads the .vtu");
+        let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+            panic!("expected an UnstructuredGrid");
+        };
+        let Piece::Inline(piece) = &pieces[0] else {
+            panic!("expected an inline piece");
+        };
+        assert_eq!(piece.num_points(), 3);
+        assert_eq!(f32s(&piece.points)[3..6], [1.2, 0.3, 0.0]);
+        let array = |name: &str| {
+            piece
+                .data
+                .point
+                .iter()
+                .find_map(|a| match a {
+                    Attribute::DataArray(a) if a.name == name => Some(a.data.clone()),
+                    _ => None,
+                })
+                .unwrap_or_else(|| panic!("no {name}"))
+        };
+        assert_eq!(array("body").cast_into::<u32>().unwrap(), [0, 2, 2]);
+        assert_eq!(f32s(&array("volume")), [1e-4, 2e-4, 3e-4]);
     }
 
     #[test]
