@@ -19,7 +19,6 @@ use crate::blocked::{ResidualTerms, LANES};
 use crate::particles::FluidParticles;
 use crate::reduce;
 use crate::settings::SolveLimits;
-use crate::solver::apply_pressure;
 use crate::step::StepContext;
 use glam::Vec2;
 
@@ -98,6 +97,9 @@ pub struct JacobiScratch {
     rate: Vec<f32>,
     /// The rates before the increment applied last, to take an iteration back.
     previous_rate: Vec<f32>,
+    /// Per particle, the stiffness the solve may start from (the warm start), applied only
+    /// where the particle is compressed before it ([`Sweeps::warm_start`]).
+    warm: Vec<f32>,
 }
 
 impl JacobiScratch {
@@ -134,12 +136,14 @@ fn jacobi_solve(
 ) -> SolveReport {
     let limits = problem.limits;
     let diverging_error_growth = step.settings.diverging_error_growth;
+    let warm = step.settings.warm_start;
     let n = fluid.len();
     for v in [
         &mut scratch.delta,
         &mut scratch.previous_delta,
         &mut scratch.rate,
         &mut scratch.previous_rate,
+        &mut scratch.warm,
     ] {
         v.resize(n, 0.0);
     }
@@ -155,6 +159,13 @@ fn jacobi_solve(
         // the velocities as they are.
         let (mut next, mut rates_now) = (0, 0);
         let (mut avg, mut max) = sweeps.residuals(team, &mine, next);
+        if warm {
+            sweeps.warm_start(team, &mine, next);
+            sweeps.apply(team, &mine, next);
+            next = 1 - next;
+            rates_now = next;
+            (avg, max) = sweeps.residuals(team, &mine, next);
+        }
         let mut iterations = 0;
         while limits.unmet(avg, max, iterations) {
             sweeps.apply(team, &mine, next);
@@ -211,6 +222,8 @@ struct Sweeps<'a> {
     total: Shared<'a, f32>,
     increments: [Shared<'a, f32>; 2],
     rates: [Shared<'a, f32>; 2],
+    /// The warm-start stiffness of each particle ([`JacobiScratch::warm`]).
+    warm: &'a [f32],
     /// Per part, the (sum, max) of its residuals: the residual sum decides when to stop, so
     /// it is taken in an order that does not depend on the work split (`reduce`), per part,
     /// then the parts in order.
@@ -256,6 +269,7 @@ impl<'a> Sweeps<'a> {
                 Shared::new(&mut scratch.rate),
                 Shared::new(&mut scratch.previous_rate),
             ],
+            warm: &scratch.warm,
             part_sums: Shared::new(&mut part_sums[..parts]),
         }
     }
@@ -325,6 +339,34 @@ impl<'a> Sweeps<'a> {
         (sum / self.n as f64 * self.to_pct, max * self.to_pct)
     }
 
+    /// The warm start, as the increments in `increments[buffer]`, part by part: its stored
+    /// stiffness for each particle that the residual pass just found compressed at the
+    /// velocities as they are (residual above zero, its rate in `rates[buffer]`), zero for
+    /// every other. A particle that is not compressed needs no pressure: a droplet that hit a
+    /// wall in the last step has stopped, and its stopping stiffness, applied again, would
+    /// throw it back (a lone particle met a wall at 10 m/s and left it at 9.5 m/s with the
+    /// warm start applied to all). SPlisHSPlasH's DFSPH gates its warm start the same way.
+    fn warm_start(&self, team: &Team, mine: &Range<usize>, buffer: usize) {
+        let (source, rate_scale) = (self.terms.source, self.terms.rate_scale);
+        for p in team.parts(mine.clone()) {
+            let (_, items) = self.part(p);
+            // SAFETY: each part's increments are written by the one member that took it, and
+            // its rates were written in the residual pass, which the barrier ended; the
+            // barrier below ends this pass.
+            let (d, r) = unsafe {
+                (
+                    self.increments[buffer].part_mut(items.clone()),
+                    self.rates[buffer].part_mut(items.clone()),
+                )
+            };
+            for (k, i) in items.enumerate() {
+                let compressed = source[i] + rate_scale * r[k] > 0.0;
+                d[k] = if compressed { self.warm[i] } else { 0.0 };
+            }
+        }
+        team.wait();
+    }
+
     /// Apply the increments in `increments[buffer]` to the velocities and add them to the
     /// running totals, part by part.
     fn apply(&self, team: &Team, mine: &Range<usize>, buffer: usize) {
@@ -369,21 +411,26 @@ impl<'a> Sweeps<'a> {
     }
 }
 
-/// The warm start of both solves: the stiffness each starts from is a share
+/// The warm start of both solves: the stiffness each may start from is a share
 /// ([`SolverSettings::jacobi_warm_share`](crate::settings::SolverSettings::jacobi_warm_share))
 /// of the previous step's, times `scale` (1 for κᵛ; Δt for the stored p/ρ0, whence κ = Δt·p/ρ0),
-/// its negative part dropped, and applied to the velocities; without a warm start, zero.
-fn warm_start(step: &StepContext, total: &mut [f32], scale: f32, velocity: &mut [Vec2]) {
-    if step.settings.warm_start {
-        let w = step.settings.jacobi_warm_share;
-        total
-            .par_iter_mut()
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .for_each(|k| *k = k.max(0.0) * scale * w);
-        apply_pressure(step.volume, total, velocity, &step.nb);
+/// its negative part dropped, into `warm`; `total` starts at zero (the solve adds the warm
+/// start to it where it applies it, see [`Sweeps::warm_start`]).
+fn warm_start(step: &StepContext, total: &mut [f32], scale: f32, warm: &mut Vec<f32>) {
+    warm.resize(total.len(), 0.0);
+    let w = if step.settings.warm_start {
+        step.settings.jacobi_warm_share
     } else {
-        total.iter_mut().for_each(|k| *k = 0.0);
-    }
+        0.0
+    };
+    total
+        .par_iter_mut()
+        .zip(warm.par_iter_mut())
+        .with_min_len(LIGHT_PASS_MIN_ITEMS)
+        .for_each(|(k, warm)| {
+            *warm = k.max(0.0) * scale * w;
+            *k = 0.0;
+        });
 }
 
 /// Divergence solve (TVCG 2017, Algorithm 2): make `Dρ/Dt = 0` so the velocity field is
@@ -396,7 +443,7 @@ pub fn divergence_solve(
 ) -> SolveReport {
     let (nb, settings) = (&step.nb, step.settings);
     let mut total = std::mem::take(&mut fluid.divergence_stiffness);
-    warm_start(step, &mut total, 1.0, &mut fluid.velocity);
+    warm_start(step, &mut total, 1.0, &mut scratch.warm);
     // Particles with too few neighbours for a meaningful rate are left out: their residual
     // is max(−∞ + rate, 0) = 0.
     scratch.source.resize(fluid.len(), 0.0);
@@ -442,7 +489,7 @@ pub fn density_solve(
     // κ = Δt·p/ρ0; the stored pressure does not depend on Δt, so it carries over when Δt
     // changes.
     let mut total = std::mem::take(&mut fluid.pressure_over_rho0);
-    warm_start(step, &mut total, dt, &mut fluid.velocity);
+    warm_start(step, &mut total, dt, &mut scratch.warm);
     scratch.source.resize(fluid.len(), 0.0);
     scratch
         .source
