@@ -314,11 +314,16 @@ pub const MAX_TIME_STEP: f64 = 1.0;
 /// across is a typo, and its grid would not fit in memory.
 pub const MAX_LATTICE_SITES: f64 = 1.0e9;
 
-/// Closest two listed fluid particles (`particles`) may be, in particle spacings d. Water in
-/// motion packs its particles about d apart (a few per cent closer where it is compressed);
-/// a quarter of that only happens when particles sit on top of each other, which makes the
-/// neighbour lists quadratic (see `check_block_overlaps`).
-pub const MIN_PARTICLE_DISTANCE: f64 = 0.25;
+/// Closest two listed fluid particles (`particles`) may be, in particle spacings d: closer
+/// they are one particle written twice (the kernel's gradient vanishes between them, so the
+/// pressure cannot push them apart). Water in motion does bring pairs far closer than d: a
+/// dam break at d = 4 cm had two particles 0.24·d apart within 5 s.
+pub const MIN_PARTICLE_DISTANCE: f64 = 1.0e-3;
+
+/// Most other listed particles one may have closer than a spacing d. A lattice has none,
+/// water in motion a few; more are particles piled on top of each other, which make the
+/// neighbour lists grow quadratically (see `check_block_overlaps`).
+pub const MAX_CLOSE_PARTICLES: usize = 12;
 
 /// Why a scene was rejected. The message names the offending key (`solver.max_iterations`,
 /// `fluid[1].max`, ...).
@@ -535,8 +540,9 @@ impl Scene {
     /// The listed fluid particles (`particles`): finite, inside the tank (give or take half a
     /// spacing: water pressed against a wall sits between its interior and the centre line
     /// of its first layer), with one velocity each (or none), no faster than a fluid block may
-    /// start, no two closer than [`MIN_PARTICLE_DISTANCE`]·d, and none inside a fluid block's
-    /// lattice (there they would sit on its particles). Errors name the particle's index.
+    /// start, no two closer than [`MIN_PARTICLE_DISTANCE`]·d, none with more than
+    /// [`MAX_CLOSE_PARTICLES`] others closer than d, and none inside a fluid block's lattice
+    /// (there they would sit on its particles). Errors name the particle's index.
     fn check_particles(&self) -> Result<(), SceneError> {
         let list = &self.particles;
         if list.is_empty() {
@@ -615,8 +621,7 @@ impl Scene {
             ));
         }
 
-        // Cells of side d: a pair closer than the limit lies in the same or a neighbouring
-        // cell. The positions are inside the tank, whose cell count the radius check bounds.
+        // Cells of side d: a pair closer than d lies in the same or a neighbouring cell. The positions are inside the tank, whose cell count the radius check bounds.
         let cell = |p: Point| {
             (
                 ((p[0] - self.tank.min[0]) / d).floor() as i64,
@@ -631,26 +636,37 @@ impl Scene {
         let closest = MIN_PARTICLE_DISTANCE * d;
         for (j, &p) in list.positions.iter().enumerate() {
             let (cx, cy) = cell(p);
+            let mut close = 0;
             for dy in -1..=1 {
                 for dx in -1..=1 {
                     let Some(others) = cells.get(&(cx + dx, cy + dy)) else {
                         continue;
                     };
-                    for &i in others.iter().filter(|&&i| i < j) {
+                    for &i in others.iter().filter(|&&i| i != j) {
                         let q = list.positions[i];
                         let r = (p[0] - q[0]).hypot(p[1] - q[1]);
-                        if r < closest {
+                        close += usize::from(r < d);
+                        if i < j && r < closest {
                             return Err(invalid(
                                 format!("particles.positions[{j}]"),
                                 format!(
                                     "lies {r:.3e} m from particles.positions[{i}], closer than \
                                      {MIN_PARTICLE_DISTANCE} particle spacings ({closest} m): \
-                                     the particles would sit on top of each other"
+                                     one particle written twice"
                                 ),
                             ));
                         }
                     }
                 }
+            }
+            if close > MAX_CLOSE_PARTICLES {
+                return Err(invalid(
+                    format!("particles.positions[{j}]"),
+                    format!(
+                        "{close} other particles lie closer than one spacing ({d} m), more than \
+                         {MAX_CLOSE_PARTICLES}: the particles are piled on top of each other"
+                    ),
+                ));
             }
         }
 
@@ -1399,8 +1415,8 @@ mod tests {
             ),
             (
                 "",
-                r#"{"positions": [[0.5, 0.5], [0.6, 0.5], [0.5001, 0.5]]}"#,
-                "`particles.positions[2]`: lies 1.000e-4 m from particles.positions[0]",
+                r#"{"positions": [[0.5, 0.5], [0.6, 0.5], [0.500001, 0.5]]}"#,
+                "`particles.positions[2]`: lies 1.000e-6 m from particles.positions[0]",
             ),
             (
                 r#"{"min": [0, 0], "max": [1, 0.5]}"#,
@@ -1415,6 +1431,21 @@ mod tests {
                 "{particles}: {msg:?} lacks {needle:?}"
             );
         }
+        // Fourteen particles within half a spacing of each other; thirteen are accepted.
+        let pile = |n: usize| {
+            let p: Vec<String> = (0..n)
+                .map(|k| format!("[{}, 0.5]", 0.5 + 0.0007 * k as f64))
+                .collect();
+            scene("", &format!(r#"{{"positions": [{}]}}"#, p.join(",")))
+        };
+        Scene::from_json(&pile(13)).unwrap();
+        let msg = err(&pile(14));
+        assert!(
+            msg.contains(
+                "`particles.positions[0]`: 13 other particles lie closer than one spacing"
+            ),
+            "{msg}"
+        );
         let msg =
             err(r#"{"max_particles": 1, "particles": {"positions": [[0.5, 0.5], [0.6, 0.5]]}}"#);
         assert!(
