@@ -98,26 +98,29 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
             });
         // The range always holds the scene's own radius, and the slider never changes a value
         // it did not edit: a scene runs at the radius it was written with.
-        let (lo, hi) = st
-            .radius_range
-            .unwrap_or((*st.radius_edit, *st.radius_edit));
-        let r = ui
-            .add_enabled(
-                st.radius_range.is_some(),
-                Slider::new(st.radius_edit, lo..=hi)
-                    .logarithmic(true)
-                    .clamping(egui::SliderClamping::Edits)
-                    .text("particle radius (m)"),
-            )
-            .on_hover_text("Restarts the scene with the new resolution")
-            .on_disabled_hover_text(
-                "This scene lists its particles one by one: they are one resolution",
-            );
-        // Apply once the slider is let go or the typed value is committed, not for every
-        // intermediate value.
-        let idle = !r.dragged() && !ui.ctx().wants_keyboard_input();
-        if idle && *st.radius_edit != scene.particle_radius {
-            out.push(Command::SetParticleRadius(*st.radius_edit));
+        match st.radius_range {
+            Some((lo, hi)) => {
+                let r = ui
+                    .add(
+                        Slider::new(st.radius_edit, lo..=hi)
+                            .logarithmic(true)
+                            .clamping(egui::SliderClamping::Edits)
+                            .text("particle radius (m)"),
+                    )
+                    .on_hover_text("Restarts the scene with the new resolution");
+                // Apply once the slider is let go or the typed value is committed, not for
+                // every intermediate value.
+                let idle = !r.dragged() && !ui.ctx().wants_keyboard_input();
+                if idle && *st.radius_edit != scene.particle_radius {
+                    out.push(Command::SetParticleRadius(*st.radius_edit));
+                }
+            }
+            None => {
+                ui.label(format!("particle radius {} m", scene.particle_radius))
+                    .on_hover_text(
+                        "Fixed: this scene lists its particles one by one, at one resolution",
+                    );
+            }
         }
 
         ui.separator();
