@@ -29,16 +29,15 @@ pub const KEY_HELP: &[(&str, &str)] = &[
     ("N", "single step (pauses)"),
     (
         "R",
-        "reset to the scene as loaded: its water, walls, gravity, radius and settings \
-         (drawn walls and poured water go; a saved scene brings back the walls saved in it)",
+        "reset to the scene as loaded: water, walls, gravity, radius, settings \
+         (drawn walls go)",
     ),
     ("1 – 9", "load a built-in scene"),
     ("C", "cycle the colouring (speed, density, pressure)"),
     ("F12", "save a PNG screenshot to the current directory"),
     (
         "Ctrl+S",
-        "save the state (water, walls, gravity, settings) as scene-<time>.json in the \
-         current directory, for `dfsph2d run` and `view`",
+        "save the state as a scene, scene-<time>.json in the current directory",
     ),
     ("Ctrl+O or drop a .json", "open a scene file"),
     ("H or ?", "show / hide this help"),
