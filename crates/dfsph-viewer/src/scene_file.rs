@@ -15,7 +15,8 @@ use egui_file_dialog::{DialogState, FileDialog};
 
 /// The particle radius slider's range, m: what the scene validator accepts for this tank
 /// ([`Scene::particle_radius_limits`]), raised to where the fluid blocks would hold about
-/// `max_particles`, and always including the scene's own radius. `None` for a scene that
+/// `max_particles` and lowered to where the narrowest block is one spacing wide (both
+/// validator rules too), and always including the scene's own radius. `None` for a scene that
 /// lists its particles: they are one resolution and cannot be resampled at another.
 pub fn radius_range(scene: &Scene, max_particles: usize) -> Option<(f64, f64)> {
     if !scene.particles.is_empty() {
@@ -29,6 +30,12 @@ pub fn radius_range(scene: &Scene, max_particles: usize) -> Option<(f64, f64)> {
         .map(|b| (b.max[0] - b.min[0]) * (b.max[1] - b.min[1]))
         .sum();
     let lo = lo.max(0.5 * (area / max_particles.max(1) as f64).sqrt());
+    let narrowest = scene
+        .fluid
+        .iter()
+        .map(|b| (b.max[0] - b.min[0]).min(b.max[1] - b.min[1]))
+        .fold(f64::INFINITY, f64::min);
+    let hi = hi.min(0.5 * narrowest);
     let r = scene.particle_radius;
     Some((lo.min(r), hi.max(r)))
 }
@@ -136,7 +143,7 @@ impl Default for SceneOpener {
 }
 
 impl SceneOpener {
-    /// Show the dialog (from the current directory, or where it was last).
+    /// Show the dialog, in the directory the viewer was started in.
     pub fn open(&mut self) {
         self.dialog.select_file();
     }
@@ -171,10 +178,15 @@ mod tests {
             let (lo, hi) = radius_range(&s, 1_000_000).unwrap();
             assert!(lo <= r && r <= hi, "{r} in {lo}..{hi}");
         }
-        // The dam break's 2 m² of water reaches a million particles at r ≈ 0.7 mm; the tank
-        // fits two particles across up to r = 0.75 m.
+        // The dam break's 2 m² of water reaches a million particles at r ≈ 0.7 mm; its 1 m
+        // wide column is one spacing wide at r = 0.5 m (the tank would allow 0.75 m).
         let (lo, hi) = radius_range(&coarse(), 1_000_000).unwrap();
-        assert!((lo - 0.000707).abs() < 1e-5 && hi == 0.75, "{lo} {hi}");
+        assert!((lo - 0.000707).abs() < 1e-5 && hi == 0.5, "{lo} {hi}");
+        for r in [lo * 1.01, hi] {
+            let mut s = coarse();
+            s.particle_radius = r;
+            s.validate().unwrap_or_else(|e| panic!("r = {r}: {e}"));
+        }
         let saved = Simulation::new(&coarse()).unwrap().to_scene();
         assert_eq!(radius_range(&saved, 1_000_000), None);
     }
