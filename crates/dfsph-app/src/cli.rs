@@ -85,7 +85,9 @@ pub struct ViewArgs {
     #[arg(long, value_name = "SECONDS", value_parser = non_negative_seconds)]
     pub exit_after: Option<f64>,
 
-    /// When the viewer closes, save the scene and a snapshot into this directory.
+    /// When the viewer closes after --exit-after, save into this directory: particles.csv,
+    /// screenshot.png, session.json, and scene.json, the state as a scene that `run` and
+    /// `view` load.
     #[arg(long, value_name = "DIR")]
     pub save_on_exit: Option<PathBuf>,
 

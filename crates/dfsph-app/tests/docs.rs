@@ -68,7 +68,14 @@ fn every_key_is_documented() {
             Obstacle::Polyline {
                 points: vec![[2.0, 0.0], [3.0, 1.0]],
             },
+            Obstacle::Particles {
+                positions: vec![[2.5, 1.5]],
+            },
         ],
+        particles: scene::ParticleList {
+            positions: vec![[3.5, 2.5]],
+            velocities: vec![[1.0, 0.0]],
+        },
         ..Scene::default()
     };
     let value: serde_json::Value = serde_json::from_str(&scene.to_json()).unwrap();

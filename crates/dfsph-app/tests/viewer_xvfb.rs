@@ -21,10 +21,14 @@
 //! can slow simulated time several-fold). A dam break is in motion in both runs, and how far
 //! it has got depends on the machine's speed.
 
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+mod common;
+
+use std::path::Path;
+use std::process::Command;
 use std::thread::sleep;
 use std::time::{Duration, Instant};
+
+use common::xvfb::{focus, missing_tools, xdotool, KillOnDrop, Xvfb};
 
 const SCENE: &str = "hydrostatic";
 /// Wall time each key is held on the first try, s.
@@ -35,115 +39,6 @@ const FIRST_HOLD_S: f64 = 2.0;
 const MIN_HELD_SIM_S: f64 = 0.08;
 /// Tries, each holding the keys longer, before the machine is declared too slow.
 const HOLD_TRIES: usize = 4;
-
-/// Kills a child process when dropped (a viewer that outlived the test).
-struct KillOnDrop(Child, &'static str);
-
-impl Drop for KillOnDrop {
-    fn drop(&mut self) {
-        if let Ok(None) = self.0.try_wait() {
-            eprintln!("killing {}", self.1);
-            let _ = self.0.kill();
-        }
-        let _ = self.0.wait();
-    }
-}
-
-/// Whether an executable is on PATH.
-fn on_path(name: &str) -> bool {
-    std::env::var_os("PATH")
-        .map(|p| std::env::split_paths(&p).any(|d| d.join(name).is_file()))
-        .unwrap_or(false)
-}
-
-/// A display number with no X server or lock file, starting from a pid-dependent number so
-/// concurrent test runs do not collide.
-fn free_display() -> u32 {
-    let start = 100 + std::process::id() % 300;
-    (start..start + 300)
-        .find(|n| {
-            !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
-                && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
-        })
-        .expect("no free X display number")
-}
-
-/// A running `Xvfb`, stopped with SIGTERM (so that it removes its socket and lock file) when
-/// dropped, and killed if that does not work.
-struct Xvfb {
-    child: Child,
-    number: u32,
-}
-
-impl Xvfb {
-    fn start() -> Self {
-        let number = free_display();
-        let child = Command::new("Xvfb")
-            .arg(format!(":{number}"))
-            .args(["-screen", "0", "1280x800x24", "-nolisten", "tcp"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("starting Xvfb");
-        let mut xvfb = Xvfb { child, number };
-        let deadline = Instant::now() + Duration::from_secs(20);
-        // The socket file appears before the server accepts connections (a viewer started
-        // in between fails to connect on a loaded machine): wait until a client gets in.
-        while !(xvfb.socket().exists() && xvfb.accepts_clients()) {
-            if let Ok(Some(status)) = xvfb.child.try_wait() {
-                panic!("Xvfb :{number} exited at start: {status}");
-            }
-            assert!(Instant::now() < deadline, "Xvfb :{number} did not start");
-            sleep(Duration::from_millis(50));
-        }
-        xvfb
-    }
-
-    fn accepts_clients(&self) -> bool {
-        Command::new("xdotool")
-            .arg("getdisplaygeometry")
-            .env("DISPLAY", self.display())
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .status()
-            .is_ok_and(|s| s.success())
-    }
-
-    fn display(&self) -> String {
-        format!(":{}", self.number)
-    }
-
-    fn socket(&self) -> PathBuf {
-        PathBuf::from(format!("/tmp/.X11-unix/X{}", self.number))
-    }
-}
-
-impl Drop for Xvfb {
-    fn drop(&mut self) {
-        let _ = Command::new("kill")
-            .args(["-TERM", &self.child.id().to_string()])
-            .status();
-        for _ in 0..50 {
-            if let Ok(Some(_)) = self.child.try_wait() {
-                return;
-            }
-            sleep(Duration::from_millis(50));
-        }
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-        let _ = std::fs::remove_file(self.socket());
-        let _ = std::fs::remove_file(format!("/tmp/.X{}-lock", self.number));
-    }
-}
-
-fn xdotool(display: &str, args: &[&str]) -> String {
-    let out = Command::new("xdotool")
-        .args(args)
-        .env("DISPLAY", display)
-        .output()
-        .expect("running xdotool");
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 /// What the viewer prints when it cannot connect to the X server.
 const NO_X_CONNECTION: &str = "Failed to open connection to X server";
@@ -237,21 +132,6 @@ fn find_window(display: &str, viewer: &mut KillOnDrop, dir: &Path) -> Result<Str
         assert!(Instant::now() < deadline, "no dfsph2d window appeared");
         sleep(Duration::from_millis(100));
     }
-}
-
-/// Give the window the keyboard focus (there is no window manager to do it) and check that
-/// it has it.
-fn focus(display: &str, wid: &str) {
-    for _ in 0..50 {
-        xdotool(display, &["windowfocus", "--sync", wid]);
-        if xdotool(display, &["getwindowfocus"]).trim() == wid {
-            // Let the viewer see the focus change before the keys come.
-            sleep(Duration::from_millis(300));
-            return;
-        }
-        sleep(Duration::from_millis(100));
-    }
-    panic!("could not focus window {wid}");
 }
 
 fn log_of(dir: &Path) -> String {
@@ -401,10 +281,7 @@ fn check_screenshot(dir: &Path) {
 
 #[test]
 fn stirring_the_tank_under_xvfb_moves_the_water() {
-    let missing: Vec<_> = ["Xvfb", "xdotool"]
-        .into_iter()
-        .filter(|t| !on_path(t))
-        .collect();
+    let missing = missing_tools();
     if !missing.is_empty() {
         eprintln!(
             "note: skipping the viewer test, {} not installed \

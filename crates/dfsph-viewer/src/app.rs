@@ -18,6 +18,7 @@ use crate::hud::{self, FrameStats, History, HudInfo, Rate};
 use crate::input::{Command, InputMapper, Tool, ViewInput};
 use crate::panel::{self, PanelState};
 use crate::render::{self, Coloring, ViewTransform};
+use crate::scene_file::{self, SceneOpener};
 use crate::stepper::Stepper;
 use crate::ViewerOptions;
 
@@ -81,6 +82,11 @@ pub struct ViewerApp {
     sim: Stepper,
     /// `max_particles` of the scene as loaded; the pour budget is derived from it.
     requested_max_particles: usize,
+    /// The scene as loaded (from the command line, the scene list or a file): what `R`
+    /// goes back to, whatever was changed since.
+    loaded: Scene,
+    /// The "Open scene…" dialog.
+    opener: SceneOpener,
     mapper: InputMapper,
     paused: bool,
     coloring: Coloring,
@@ -114,8 +120,18 @@ impl ViewerApp {
         opts: ViewerOptions,
         failures: Failures,
     ) -> anyhow::Result<Self> {
-        cc.egui_ctx.set_visuals(egui::Visuals::dark());
+        Self::with_context(&cc.egui_ctx, opts, failures)
+    }
+
+    /// [`Self::new`] given only the egui context (tests drive the app without a window).
+    pub(crate) fn with_context(
+        ctx: &egui::Context,
+        opts: ViewerOptions,
+        failures: Failures,
+    ) -> anyhow::Result<Self> {
+        ctx.set_visuals(egui::Visuals::dark());
         let requested_max_particles = opts.scene.max_particles;
+        let loaded = opts.scene.clone();
         let sim = build_simulation(opts.scene, requested_max_particles)?;
         let started = Instant::now();
         let exit = opts.exit_after.map(|secs| ExitPlan {
@@ -128,6 +144,8 @@ impl ViewerApp {
             radius_edit: sim.scene().particle_radius,
             sim: Stepper::new(sim),
             requested_max_particles,
+            loaded,
+            opener: SceneOpener::default(),
             paused: false,
             coloring: Coloring::default(),
             time_scale: 1.0,
@@ -140,7 +158,7 @@ impl ViewerApp {
             started,
             frames: 0,
             status: None,
-            disc: render::disc_texture(&cc.egui_ctx),
+            disc: render::disc_texture(ctx),
             fluid_colors: Vec::new(),
             shots: VecDeque::new(),
             exit,
@@ -205,10 +223,50 @@ impl ViewerApp {
     }
 
     /// Load a different scene (or radius); recorded as a reset to that scene.
-    fn load_other(&mut self, ctx: &egui::Context, scene: Scene, requested_max_particles: usize) {
-        if self.load(ctx, scene, requested_max_particles) {
+    fn load_other(
+        &mut self,
+        ctx: &egui::Context,
+        scene: Scene,
+        requested_max_particles: usize,
+    ) -> bool {
+        let loaded = self.load(ctx, scene, requested_max_particles);
+        if loaded {
             let scene = Box::new(self.sim.scene().clone());
             self.record_action(&Action::Reset { scene: Some(scene) });
+        }
+        loaded
+    }
+
+    /// Load a scene as the one `R` goes back to (a built-in, a file).
+    fn load_as_loaded(&mut self, ctx: &egui::Context, scene: Scene) -> bool {
+        let max = scene.max_particles;
+        let loaded = self.load_other(ctx, scene.clone(), max);
+        if loaded {
+            self.loaded = scene;
+        }
+        loaded
+    }
+
+    /// Open a scene file; a bad one leaves the simulation as it is and says why.
+    fn open_file(&mut self, ctx: &egui::Context, path: &std::path::Path) {
+        match scene_file::read_scene(path) {
+            Ok(scene) => {
+                if self.load_as_loaded(ctx, scene) {
+                    self.set_status(format!("opened {}", path.display()));
+                }
+            }
+            Err(e) => self.set_status(format!("cannot open: {e:#}")),
+        }
+    }
+
+    /// Save the state as `scene-<time>.json` in the current directory.
+    fn save_scene(&mut self) {
+        let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
+        let saved = scene_file::saved_scene(&self.sim, self.requested_max_particles)
+            .and_then(|scene| scene_file::save_timestamped(&dir, &scene));
+        match saved {
+            Ok(path) => self.set_status(format!("saved {}", path.display())),
+            Err(e) => self.set_status(format!("not saved: {e:#}")),
         }
     }
 
@@ -241,18 +299,18 @@ impl ViewerApp {
                 self.record(&[s]);
             }
             Command::Reset => {
-                let scene = self.sim.scene().clone();
-                if self.load(ctx, scene, self.requested_max_particles) {
-                    self.record_action(&Action::Reset { scene: None });
-                }
+                // The scene as loaded, not as changed since: recorded as a reset to it.
+                let scene = self.loaded.clone();
+                let max = scene.max_particles;
+                self.load_other(ctx, scene, max);
             }
             Command::LoadScene(i) => {
                 if let Some(b) = BUILTIN_SCENES.get(i) {
-                    let scene = b.scene();
-                    let max = scene.max_particles;
-                    self.load_other(ctx, scene, max);
+                    self.load_as_loaded(ctx, b.scene());
                 }
             }
+            Command::SaveScene => self.save_scene(),
+            Command::OpenScene => self.opener.open(),
             Command::SetParticleRadius(r) => {
                 let mut scene = self.sim.scene().clone();
                 scene.particle_radius = r;
@@ -369,7 +427,10 @@ impl ViewerApp {
         });
         let path = dir.join("session.json");
         std::fs::write(&path, serde_json::to_string_pretty(&session)?)
-            .with_context(|| format!("writing {}", path.display()))
+            .with_context(|| format!("writing {}", path.display()))?;
+        // The state as a scene that `run` and `view` load (session.json is a record).
+        let scene = scene_file::saved_scene(&self.sim, self.requested_max_particles)?;
+        scene_file::write_scene(&dir.join("scene.json"), &scene)
     }
 }
 
@@ -443,6 +504,10 @@ impl eframe::App for ViewerApp {
                         time_scale: &mut self.time_scale,
                         coloring: &mut self.coloring,
                         radius_edit: &mut self.radius_edit,
+                        radius_range: scene_file::radius_range(
+                            self.sim.scene(),
+                            self.requested_max_particles,
+                        ),
                         paused: self.paused,
                         status: status.as_deref(),
                     },
@@ -477,13 +542,20 @@ impl eframe::App for ViewerApp {
             response.hovered() || response.is_pointer_button_down_on() || response.dragged();
         let view = ViewInput {
             pointer: hover.filter(|_| over_view).map(|p| transform.to_world(p)),
-            keyboard: !ctx.wants_keyboard_input(),
+            // The open-scene dialog's keys are its own.
+            keyboard: !ctx.wants_keyboard_input() && !self.opener.is_open(),
         };
         commands.extend(ctx.input(|i| self.mapper.update(i, view)));
 
         // Actions between steps, then this frame's slice of simulated time.
         for cmd in commands {
             self.apply(ctx, cmd);
+        }
+        // A scene file picked in the dialog or dropped on the window.
+        let mut opened = ctx.input(scene_file::dropped_paths);
+        opened.extend(self.opener.update(ctx));
+        for path in opened {
+            self.open_file(ctx, &path);
         }
         // A reset or a new scene may have changed the world bounds.
         let (lo, hi) = render::world_bounds(&self.sim);
@@ -582,3 +654,7 @@ impl ViewerApp {
             .show(ctx, |ui| hud::hud(ui, &info));
     }
 }
+
+#[cfg(test)]
+#[path = "app_tests.rs"]
+mod tests;

@@ -50,7 +50,7 @@ pub fn timestamped_png(dir: &Path) -> PathBuf {
 }
 
 /// `YYYYMMDD-HHMMSS` for seconds since the Unix epoch, UTC.
-fn utc_stamp(secs: u64) -> String {
+pub(crate) fn utc_stamp(secs: u64) -> String {
     let days = (secs / 86_400) as i64;
     let rem = secs % 86_400;
     // Civil date from days since 1970-01-01 (H. Hinnant's algorithm).

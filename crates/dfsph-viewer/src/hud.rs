@@ -235,6 +235,17 @@ pub fn hud(ui: &mut egui::Ui, info: &HudInfo) {
                         .color(Color32::from_rgb(255, 180, 80)),
                     None => mono(text),
                 });
+                // The scene runs as written, whatever its size: say why it is slow.
+                if info.slowed.is_some() {
+                    ui.label(
+                        RichText::new(format!(
+                            "slower than real time: {} particles",
+                            info.particles
+                        ))
+                        .strong()
+                        .color(Color32::from_rgb(255, 180, 80)),
+                    );
+                }
             }
             ui.label(
                 RichText::new("H or ? for help")

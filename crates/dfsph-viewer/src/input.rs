@@ -27,10 +27,19 @@ pub const KEY_HELP: &[(&str, &str)] = &[
     ),
     ("Space", "pause / resume"),
     ("N", "single step (pauses)"),
-    ("R", "reset the scene"),
+    (
+        "R",
+        "reset to the scene as loaded: water, walls, gravity, radius, settings \
+         (drawn walls go)",
+    ),
     ("1 – 9", "load a built-in scene"),
     ("C", "cycle the colouring (speed, density, pressure)"),
     ("F12", "save a PNG screenshot to the current directory"),
+    (
+        "Ctrl+S",
+        "save the state as a scene, scene-<time>.json in the current directory",
+    ),
+    ("Ctrl+O or drop a .json", "open a scene file"),
     ("H or ?", "show / hide this help"),
 ];
 
@@ -62,6 +71,10 @@ pub enum Command {
     ToggleHelp,
     /// Restart the current scene with this particle radius, m (from the side panel).
     SetParticleRadius(f64),
+    /// Save the state as a scene file in the current directory.
+    SaveScene,
+    /// Show the dialog that opens a scene file.
+    OpenScene,
 }
 
 /// Where the pointer is, as far as the simulation view is concerned.
@@ -255,6 +268,12 @@ impl InputMapper {
         }
         if input.key_pressed(Key::F12) {
             out.push(Command::Screenshot);
+        }
+        if input.modifiers.command && input.key_pressed(Key::S) {
+            out.push(Command::SaveScene);
+        }
+        if input.modifiers.command && input.key_pressed(Key::O) {
+            out.push(Command::OpenScene);
         }
         // `?` arrives as Key::Questionmark on some layouts and only as text on others.
         let question = input.key_pressed(Key::Questionmark)
@@ -506,6 +525,27 @@ mod tests {
     }
 
     #[test]
+    fn ctrl_s_saves_and_ctrl_o_opens_but_plain_s_and_o_do_nothing() {
+        let mut h = Harness::new();
+        let ctrl = |k: Key| Event::Key {
+            key: k,
+            physical_key: None,
+            pressed: true,
+            repeat: false,
+            modifiers: Modifiers::COMMAND,
+        };
+        assert_eq!(
+            h.frame_with(vec![ctrl(Key::S)], Modifiers::COMMAND),
+            vec![Command::SaveScene]
+        );
+        assert_eq!(
+            h.frame_with(vec![ctrl(Key::O)], Modifiers::COMMAND),
+            vec![Command::OpenScene]
+        );
+        assert_eq!(h.frame(vec![key(Key::S, true), key(Key::O, true)]), vec![]);
+    }
+
+    #[test]
     fn left_drag_pulls_right_drag_pushes_and_release_lets_go() {
         let mut h = Harness::new();
         let at = h.pointer.unwrap();
@@ -650,6 +690,8 @@ mod tests {
             "C",
             "F12",
             "H or ?",
+            "Ctrl+S",
+            "Ctrl+O",
         ] {
             assert!(text.contains(needle), "{needle}");
         }

@@ -27,6 +27,7 @@ pub mod hud;
 pub mod input;
 pub mod panel;
 pub mod render;
+pub mod scene_file;
 pub mod stepper;
 
 /// What to show and how long.
@@ -37,8 +38,9 @@ pub struct ViewerOptions {
     /// Close the window after this many seconds of wall time.
     pub exit_after: Option<f64>,
     /// When closing because of `exit_after` (and only then), write `particles.csv` (`x,y,vx,vy,density,
-    /// pressure`), `screenshot.png` and `session.json` (run statistics and the applied
-    /// actions) into this directory.
+    /// pressure`), `screenshot.png`, `session.json` (run statistics and the applied
+    /// actions) and `scene.json` (the state as a scene that `run` and `view` load) into this
+    /// directory.
     pub save_on_exit: Option<PathBuf>,
     /// Record every action with the step at which it applies into this file (JSON lines,
     /// `docs/recording.md`), for `dfsph2d run SCENE --replay FILE`.

@@ -19,6 +19,9 @@ pub struct PanelState<'a> {
     pub coloring: &'a mut Coloring,
     /// The particle radius slider's value, m (applied when the slider is let go).
     pub radius_edit: &'a mut f64,
+    /// The radius slider's range, m ([`crate::scene_file::radius_range`]); `None` turns it
+    /// off (a scene that lists its particles).
+    pub radius_range: Option<(f64, f64)>,
     pub paused: bool,
     /// The last message for the user (rejected actions, saved files).
     pub status: Option<&'a str>,
@@ -41,7 +44,14 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
             if ui.button("Step").clicked() {
                 out.push(Command::Step);
             }
-            if ui.button("Reset").clicked() {
+            if ui
+                .button("Reset")
+                .on_hover_text(
+                    "Back to the scene as loaded: its water, walls, gravity, radius and \
+                     settings (drawn walls and poured water go)",
+                )
+                .clicked()
+            {
                 out.push(Command::Reset);
             }
         });
@@ -51,6 +61,22 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
             }
             if ui.button("Help").clicked() {
                 out.push(Command::ToggleHelp);
+            }
+        });
+        ui.horizontal(|ui| {
+            if ui
+                .button("Save scene…")
+                .on_hover_text("Ctrl+S: the state as scene-<time>.json in the current directory")
+                .clicked()
+            {
+                out.push(Command::SaveScene);
+            }
+            if ui
+                .button("Open scene…")
+                .on_hover_text("Ctrl+O, or drop a .json file on the window")
+                .clicked()
+            {
+                out.push(Command::OpenScene);
             }
         });
         if let Some(msg) = st.status {
@@ -70,18 +96,31 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
                     }
                 }
             });
-        let r = ui
-            .add(
-                Slider::new(st.radius_edit, 0.004..=0.05)
-                    .logarithmic(true)
-                    .text("particle radius (m)"),
-            )
-            .on_hover_text("Restarts the scene with the new resolution");
-        // Apply once the slider is let go or the typed value is committed, not for every
-        // intermediate value.
-        let idle = !r.dragged() && !ui.ctx().wants_keyboard_input();
-        if idle && *st.radius_edit != scene.particle_radius {
-            out.push(Command::SetParticleRadius(*st.radius_edit));
+        // The range always holds the scene's own radius, and the slider never changes a value
+        // it did not edit: a scene runs at the radius it was written with.
+        match st.radius_range {
+            Some((lo, hi)) => {
+                let r = ui
+                    .add(
+                        Slider::new(st.radius_edit, lo..=hi)
+                            .logarithmic(true)
+                            .clamping(egui::SliderClamping::Edits)
+                            .text("particle radius (m)"),
+                    )
+                    .on_hover_text("Restarts the scene with the new resolution");
+                // Apply once the slider is let go or the typed value is committed, not for
+                // every intermediate value.
+                let idle = !r.dragged() && !ui.ctx().wants_keyboard_input();
+                if idle && *st.radius_edit != scene.particle_radius {
+                    out.push(Command::SetParticleRadius(*st.radius_edit));
+                }
+            }
+            None => {
+                ui.label(format!("particle radius {} m", scene.particle_radius))
+                    .on_hover_text(
+                        "Fixed: this scene lists its particles one by one, at one resolution",
+                    );
+            }
         }
 
         ui.separator();

@@ -50,8 +50,8 @@ pub enum Action {
     /// Replace the time-step parameters.
     SetTimeStep { time_step: TimeStepParams },
     /// Start over: rebuild the simulation from `scene`, or, without one, from the current
-    /// scene (which keeps parameter and gravity changes made since, as the viewer's `r` key
-    /// does). Time and step count restart at 0; shaking, the pointer, poured fluid and drawn
+    /// scene (which keeps parameter and gravity changes made since; the viewer's `r` key
+    /// sends the scene as loaded instead). Time and step count restart at 0; shaking, the pointer, poured fluid and drawn
     /// walls are gone. The outcome counts every old fluid particle as removed and every new
     /// one as added.
     Reset {
@@ -274,6 +274,7 @@ impl Simulation {
             velocity: self.bodies[0].velocity,
             ..Default::default()
         });
+        self.drawn_walls.push(polyline.to_vec());
         let mut samples = BoundarySamples::default();
         samples.add_polyline(polyline, self.spacing, body);
         let added = samples.positions.len();

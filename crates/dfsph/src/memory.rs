@@ -128,6 +128,7 @@ impl Scene {
                         .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]) / d + 2.0)
                         .sum::<f64>()
                 }
+                Obstacle::Particles { positions } => positions.len() as f64,
             })
             .sum();
         (tank + obstacles).ceil().min(u64::MAX as f64) as u64

@@ -29,6 +29,10 @@ pub struct Scene {
     pub tank: Tank,
     /// Axis-aligned blocks of fluid, each filled with the lattice `packing` names.
     pub fluid: Vec<FluidBlock>,
+    /// Fluid particles listed one by one (a state saved by the viewer), placed exactly as
+    /// written, after those of the blocks. Left out of the JSON when empty.
+    #[serde(skip_serializing_if = "ParticleList::is_empty")]
+    pub particles: ParticleList,
     /// The lattice the fluid blocks and the tank's walls are sampled on: `square` (spacing d)
     /// or `hexagonal` (the same area d² per particle; the packing that holds still under
     /// pressure, see [`crate::packing`]).
@@ -80,6 +84,35 @@ pub struct FluidBlock {
     pub velocity: Point,
 }
 
+/// Fluid particles given one by one: `positions[i]` in metres, `velocities[i]` in m/s
+/// (all at rest when `velocities` is left out).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParticleList {
+    /// Particle centres, metres.
+    pub positions: Vec<Point>,
+    /// Velocities, m/s: empty (all at rest) or one per position.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub velocities: Vec<Point>,
+}
+
+impl ParticleList {
+    /// Whether no particle is listed.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// Number of particles listed.
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// The velocity of particle `i` (zero when `velocities` is empty), m/s.
+    pub fn velocity(&self, i: usize) -> Point {
+        self.velocities.get(i).copied().unwrap_or([0.0, 0.0])
+    }
+}
+
 /// A static obstacle, sampled with boundary particles two layers thick.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, tag = "type", rename_all = "snake_case")]
@@ -88,6 +121,9 @@ pub enum Obstacle {
     Rect { min: Point, max: Point },
     /// A wall along a polyline through the given points, metres.
     Polyline { points: Vec<Point> },
+    /// A wall made of the boundary particles listed, metres: what is left of an obstacle or
+    /// a drawn wall after part of it was erased in the viewer (a saved state).
+    Particles { positions: Vec<Point> },
 }
 
 /// The lattice of the initial fluid particles and of the tank's walls.
@@ -196,6 +232,7 @@ impl Default for Scene {
                 max: [1.0, 2.0],
                 velocity: [0.0, 0.0],
             }],
+            particles: ParticleList::default(),
             packing: Packing::Square,
             obstacles: Vec::new(),
             solver: SolverParams::default(),
@@ -273,6 +310,21 @@ pub const MAX_OBSTACLE_PARTICLES: usize = 10_000_000;
 /// infinite in single precision) out of the solver.
 pub const MAX_TIME_STEP: f64 = 1.0;
 
+/// Most lattice sites (tank area / d²) a scene may have: a tank a million particle spacings
+/// across is a typo, and its grid would not fit in memory.
+pub const MAX_LATTICE_SITES: f64 = 1.0e9;
+
+/// Closest two listed fluid particles (`particles`) may be, in particle spacings d: closer
+/// they are one particle written twice (the kernel's gradient vanishes between them, so the
+/// pressure cannot push them apart). Water in motion does bring pairs far closer than d: a
+/// dam break at d = 4 cm had two particles 0.24·d apart within 5 s.
+pub const MIN_PARTICLE_DISTANCE: f64 = 1.0e-3;
+
+/// Most other listed particles one may have closer than a spacing d. A lattice has none,
+/// water in motion a few; more are particles piled on top of each other, which make the
+/// neighbour lists grow quadratically (see `check_block_overlaps`).
+pub const MAX_CLOSE_PARTICLES: usize = 12;
+
 /// Why a scene was rejected. The message names the offending key (`solver.max_iterations`,
 /// `fluid[1].max`, ...).
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
@@ -343,7 +395,9 @@ impl Scene {
     /// nothing moves.
     pub fn is_water_at_rest(&self) -> bool {
         let tolerance = self.tank.edge_tolerance() + 0.5 * self.spacing();
-        self.gravity[0] == 0.0
+        // Listed particles may lie anywhere: nothing says they are at rest.
+        self.particles.is_empty()
+            && self.gravity[0] == 0.0
             && self.gravity[1] < 0.0
             && self.fluid.iter().all(|b| {
                 b.velocity == [0.0, 0.0]
@@ -395,6 +449,15 @@ impl Scene {
         serde_json::to_string_pretty(self).expect("a scene always serialises")
     }
 
+    /// The particle radii [`Self::validate`] accepts for this tank, m: small enough that
+    /// the tank fits two particles across, large enough that it holds at most
+    /// [`MAX_LATTICE_SITES`]. (`max_particles` bounds it too, through the fluid's count.)
+    pub fn particle_radius_limits(&self) -> (f64, f64) {
+        let w = self.tank.max[0] - self.tank.min[0];
+        let h = self.tank.max[1] - self.tank.min[1];
+        (0.5 * (w * h / MAX_LATTICE_SITES).sqrt(), 0.25 * w.min(h))
+    }
+
     /// Lattice spacing d = 2r, metres.
     pub fn spacing(&self) -> f64 {
         2.0 * self.particle_radius
@@ -412,29 +475,31 @@ impl Scene {
         ((length / self.spacing()) + 1.0e-6).floor().max(0.0) as usize
     }
 
-    /// Number of lattice sites in the scene's fluid blocks: the number of fluid particles
-    /// without obstacles, an upper bound with them (sites an obstacle covers stay empty; see
-    /// `Simulation::new`).
+    /// Number of lattice sites in the scene's fluid blocks plus the particles listed in
+    /// `particles`: the number of fluid particles without obstacles, an upper bound with them
+    /// (block sites an obstacle covers stay empty; see `Simulation::new`).
     pub fn fluid_particle_count(&self) -> usize {
-        self.fluid
-            .iter()
-            .map(|b| match self.packing {
-                Packing::Square => {
-                    self.lattice_count(b.max[0] - b.min[0])
-                        * self.lattice_count(b.max[1] - b.min[1])
-                }
-                Packing::Hexagonal => crate::packing::rows(
-                    self.tank.min,
-                    b.min,
-                    b.max,
-                    self.spacing(),
-                    self.tank.edge_tolerance(),
-                )
+        self.particles.len()
+            + self
+                .fluid
                 .iter()
-                .map(|r| r.count)
-                .sum(),
-            })
-            .sum()
+                .map(|b| match self.packing {
+                    Packing::Square => {
+                        self.lattice_count(b.max[0] - b.min[0])
+                            * self.lattice_count(b.max[1] - b.min[1])
+                    }
+                    Packing::Hexagonal => crate::packing::rows(
+                        self.tank.min,
+                        b.min,
+                        b.max,
+                        self.spacing(),
+                        self.tank.edge_tolerance(),
+                    )
+                    .iter()
+                    .map(|r| r.count)
+                    .sum(),
+                })
+                .sum::<usize>()
     }
 
     /// Fluid blocks may touch, and overlap by less than one particle spacing d along either
@@ -468,6 +533,177 @@ impl Scene {
                 }
             }
             open.push(j);
+        }
+        Ok(())
+    }
+
+    /// The listed fluid particles (`particles`): finite, inside the tank (give or take half a
+    /// spacing: water pressed against a wall sits between its interior and the centre line
+    /// of its first layer), with one velocity each (or none), no faster than a fluid block may
+    /// start, no two closer than [`MIN_PARTICLE_DISTANCE`]·d, none with more than
+    /// [`MAX_CLOSE_PARTICLES`] others closer than d, and none inside a fluid block's lattice
+    /// (there they would sit on its particles). Errors name the particle's index.
+    fn check_particles(&self) -> Result<(), SceneError> {
+        let list = &self.particles;
+        if list.is_empty() {
+            if !list.velocities.is_empty() {
+                return Err(invalid(
+                    "particles.velocities",
+                    format!(
+                        "{} velocities for no positions: `particles.positions` is empty",
+                        list.velocities.len()
+                    ),
+                ));
+            }
+            return Ok(());
+        }
+        if !list.velocities.is_empty() && list.velocities.len() != list.positions.len() {
+            return Err(invalid(
+                "particles.velocities",
+                format!(
+                    "{} velocities for {} positions: give one per position, or leave the key \
+                     out for water at rest",
+                    list.velocities.len(),
+                    list.positions.len()
+                ),
+            ));
+        }
+        let d = self.spacing();
+        let slack = 0.5 * d + self.tank.edge_tolerance();
+        for (i, p) in list.positions.iter().enumerate() {
+            let key = format!("particles.positions[{i}]");
+            for (axis, &v) in p.iter().enumerate() {
+                if !v.is_finite() {
+                    return Err(invalid(
+                        format!("{key}[{axis}]"),
+                        format!("must be a finite number, got {v}"),
+                    ));
+                }
+                let (lo, hi) = (self.tank.min[axis], self.tank.max[axis]);
+                if v < lo - slack || v > hi + slack {
+                    return Err(invalid(
+                        format!("{key}[{axis}]"),
+                        format!(
+                            "{v} lies outside the tank ({lo} to {hi}, give or take half a \
+                             particle spacing, {} m)",
+                            0.5 * d
+                        ),
+                    ));
+                }
+            }
+        }
+        for (i, v) in list.velocities.iter().enumerate() {
+            let key = format!("particles.velocities[{i}]");
+            for (axis, &c) in v.iter().enumerate() {
+                if !c.is_finite() {
+                    return Err(invalid(
+                        format!("{key}[{axis}]"),
+                        format!("must be a finite number, got {c}"),
+                    ));
+                }
+            }
+            let speed = v[0].hypot(v[1]);
+            if speed > MAX_INITIAL_SPEED {
+                return Err(invalid(
+                    key,
+                    format!("{speed} m/s is faster than {MAX_INITIAL_SPEED} m/s"),
+                ));
+            }
+        }
+        if list.len() > self.max_particles {
+            return Err(invalid(
+                "particles.positions",
+                format!(
+                    "{} particles, more than max_particles = {}",
+                    list.len(),
+                    self.max_particles
+                ),
+            ));
+        }
+
+        // Cells of side d: a pair closer than d lies in the same or a neighbouring cell. The positions are inside the tank, whose cell count the radius check bounds.
+        let cell = |p: Point| {
+            (
+                ((p[0] - self.tank.min[0]) / d).floor() as i64,
+                ((p[1] - self.tank.min[1]) / d).floor() as i64,
+            )
+        };
+        let mut cells: std::collections::HashMap<(i64, i64), Vec<usize>> =
+            std::collections::HashMap::with_capacity(list.len());
+        for (i, &p) in list.positions.iter().enumerate() {
+            cells.entry(cell(p)).or_default().push(i);
+        }
+        let closest = MIN_PARTICLE_DISTANCE * d;
+        for (j, &p) in list.positions.iter().enumerate() {
+            let (cx, cy) = cell(p);
+            let mut close = 0;
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let Some(others) = cells.get(&(cx + dx, cy + dy)) else {
+                        continue;
+                    };
+                    for &i in others.iter().filter(|&&i| i != j) {
+                        let q = list.positions[i];
+                        let r = (p[0] - q[0]).hypot(p[1] - q[1]);
+                        close += usize::from(r < d);
+                        if i < j && r < closest {
+                            return Err(invalid(
+                                format!("particles.positions[{j}]"),
+                                format!(
+                                    "lies {r:.3e} m from particles.positions[{i}], closer than \
+                                     {MIN_PARTICLE_DISTANCE} particle spacings ({closest} m): \
+                                     one particle written twice"
+                                ),
+                            ));
+                        }
+                    }
+                }
+            }
+            if close > MAX_CLOSE_PARTICLES {
+                return Err(invalid(
+                    format!("particles.positions[{j}]"),
+                    format!(
+                        "{close} other particles lie closer than one spacing ({d} m), more than \
+                         {MAX_CLOSE_PARTICLES}: the particles are piled on top of each other"
+                    ),
+                ));
+            }
+        }
+
+        // A listed particle deeper than half a spacing inside a block sits among the block's
+        // own particles. Each block looks at the particles of the cells it covers, or at every
+        // particle when that is fewer.
+        for (k, b) in self.fluid.iter().enumerate() {
+            let (lo, hi) = (
+                [b.min[0] + 0.5 * d, b.min[1] + 0.5 * d],
+                [b.max[0] - 0.5 * d, b.max[1] - 0.5 * d],
+            );
+            if hi[0] <= lo[0] || hi[1] <= lo[1] {
+                continue;
+            }
+            let inside = |p: &Point| p[0] > lo[0] && p[0] < hi[0] && p[1] > lo[1] && p[1] < hi[1];
+            let (c0, c1) = (cell(lo), cell(hi));
+            let covered = ((c1.0 - c0.0 + 1) as f64) * ((c1.1 - c0.1 + 1) as f64);
+            let found = if covered < list.len() as f64 {
+                (c0.1..=c1.1)
+                    .flat_map(|cy| (c0.0..=c1.0).map(move |cx| (cx, cy)))
+                    .filter_map(|c| cells.get(&c))
+                    .flatten()
+                    .copied()
+                    .filter(|&i| inside(&list.positions[i]))
+                    .min()
+            } else {
+                list.positions.iter().position(inside)
+            };
+            if let Some(i) = found {
+                return Err(invalid(
+                    format!("particles.positions[{i}]"),
+                    format!(
+                        "{:?} lies inside fluid[{k}], whose lattice already fills it",
+                        list.positions[i]
+                    ),
+                ));
+            }
         }
         Ok(())
     }
@@ -543,7 +779,7 @@ impl Scene {
         }
         // Grid and memory safety: a tank a million particle spacings across is a typo.
         let cells = (tank_size[0] / d) * (tank_size[1] / d);
-        if cells > 1.0e9 {
+        if cells > MAX_LATTICE_SITES {
             return Err(invalid(
                 "particle_radius",
                 format!(
@@ -553,8 +789,11 @@ impl Scene {
             ));
         }
 
-        if self.fluid.is_empty() {
-            return Err(invalid("fluid", "at least one fluid block is needed"));
+        if self.fluid.is_empty() && self.particles.is_empty() {
+            return Err(invalid(
+                "fluid",
+                "at least one fluid block (or a `particles` list) is needed",
+            ));
         }
         if self.fluid.len() > MAX_FLUID_BLOCKS {
             return Err(invalid(
@@ -622,6 +861,7 @@ impl Scene {
             }
         }
         self.check_block_overlaps()?;
+        self.check_particles()?;
         for (i, o) in self.obstacles.iter().enumerate() {
             let key = format!("obstacles[{i}]");
             match o {
@@ -646,6 +886,17 @@ impl Scene {
                     }
                     for (k, p) in points.iter().enumerate() {
                         point(&format!("{key}.points[{k}]"), *p)?;
+                    }
+                }
+                Obstacle::Particles { positions } => {
+                    if positions.is_empty() {
+                        return Err(invalid(
+                            format!("{key}.positions"),
+                            "a wall of particles needs at least one particle",
+                        ));
+                    }
+                    for (k, p) in positions.iter().enumerate() {
+                        point(&format!("{key}.positions[{k}]"), *p)?;
                     }
                 }
             }
@@ -674,6 +925,14 @@ impl Scene {
                         .windows(2)
                         .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]) / d + 1.0)
                         .sum::<f64>(),
+                ),
+                Obstacle::Particles { positions } => (
+                    positions
+                        .iter()
+                        .enumerate()
+                        .map(|(k, p)| (format!("{key}.positions[{k}]"), *p))
+                        .collect(),
+                    positions.len() as f64,
                 ),
             };
             for (k, p) in &points {
@@ -760,7 +1019,9 @@ impl Scene {
         let initial_speed = self
             .fluid
             .iter()
-            .map(|b| b.velocity[0].hypot(b.velocity[1]))
+            .map(|b| b.velocity)
+            .chain(self.particles.velocities.iter().copied())
+            .map(|v| v[0].hypot(v[1]))
             .fold(0.0, f64::max);
         let g = self.gravity[0].hypot(self.gravity[1]);
         let first_step = crate::simulation::step_displacement_bound(initial_speed, g, d);
@@ -819,7 +1080,8 @@ impl Scene {
             return Err(invalid(
                 "max_particles",
                 format!(
-                    "the fluid blocks hold {n} particles, more than max_particles = {}",
+                    "the fluid blocks and listed particles hold {n} particles, more than \
+                     max_particles = {}",
                     self.max_particles
                 ),
             ));
@@ -1103,6 +1365,118 @@ mod tests {
         assert_eq!(n, s.fluid_particle_count());
         // 2 m² of water at d² = 0.0016 m² per particle, less the rows the edges cut.
         assert!((1200..=1270).contains(&n), "{n}");
+    }
+
+    #[test]
+    fn listed_particles_are_validated_naming_the_key_and_index() {
+        let scene = |fluid: &str, particles: &str| {
+            format!(
+                r#"{{"particle_radius": 0.01, "tank": {{"min": [0, 0], "max": [2, 1]}},
+                    "fluid": [{fluid}], "particles": {particles}}}"#
+            )
+        };
+        // Water given particle by particle only, at rest or moving: accepted, counted.
+        let s =
+            Scene::from_json(&scene("", r#"{"positions": [[0.01, 0.01], [0.03, 0.01]]}"#)).unwrap();
+        assert_eq!(s.fluid_particle_count(), 2);
+        assert!(!s.is_water_at_rest());
+        Scene::from_json(&scene(
+            r#"{"min": [1, 0], "max": [2, 0.5]}"#,
+            r#"{"positions": [[0.01, 0.01], [1.995, 0.6]], "velocities": [[0, 0], [1, -2]]}"#,
+        ))
+        .unwrap();
+        let cases: &[(&str, &str, &str)] = &[
+            ("", r#"{"positions": []}"#, "`fluid`"),
+            (
+                "",
+                r#"{"positions": [[0.5, 0.5]], "spin": 1}"#,
+                "unknown field `spin`",
+            ),
+            ("", r#"{"positions": [[0.5]]}"#, "particles.positions[0]"),
+            (
+                "",
+                r#"{"positions": [[0.5, 0.5], [0.7, 1.2]]}"#,
+                "`particles.positions[1][1]`: 1.2 lies outside the tank",
+            ),
+            (
+                "",
+                r#"{"positions": [[0.5, 0.5], [-0.1, 0.5]]}"#,
+                "`particles.positions[1][0]`",
+            ),
+            (
+                "",
+                r#"{"positions": [[0.5, 0.5], [0.6, 0.5]], "velocities": [[0, 0]]}"#,
+                "`particles.velocities`: 1 velocities for 2 positions",
+            ),
+            (
+                "",
+                r#"{"positions": [[0.5, 0.5]], "velocities": [[500, 0]]}"#,
+                "`particles.velocities[0]`",
+            ),
+            (
+                "",
+                r#"{"positions": [[0.5, 0.5], [0.6, 0.5], [0.500001, 0.5]]}"#,
+                "`particles.positions[2]`: lies 1.000e-6 m from particles.positions[0]",
+            ),
+            (
+                r#"{"min": [0, 0], "max": [1, 0.5]}"#,
+                r#"{"positions": [[1.5, 0.5], [0.5, 0.25]]}"#,
+                "`particles.positions[1]`: [0.5, 0.25] lies inside fluid[0]",
+            ),
+        ];
+        for (fluid, particles, needle) in cases {
+            let msg = err(&scene(fluid, particles));
+            assert!(
+                msg.contains(needle),
+                "{particles}: {msg:?} lacks {needle:?}"
+            );
+        }
+        // Fourteen particles within half a spacing of each other; thirteen are accepted.
+        let pile = |n: usize| {
+            let p: Vec<String> = (0..n)
+                .map(|k| format!("[{}, 0.5]", 0.5 + 0.0007 * k as f64))
+                .collect();
+            scene("", &format!(r#"{{"positions": [{}]}}"#, p.join(",")))
+        };
+        Scene::from_json(&pile(13)).unwrap();
+        let msg = err(&pile(14));
+        assert!(
+            msg.contains(
+                "`particles.positions[0]`: 13 other particles lie closer than one spacing"
+            ),
+            "{msg}"
+        );
+        let msg =
+            err(r#"{"max_particles": 1, "particles": {"positions": [[0.5, 0.5], [0.6, 0.5]]}}"#);
+        assert!(
+            msg.contains("`particles.positions`") && msg.contains("max_particles = 1"),
+            "{msg}"
+        );
+        let msg = err(r#"{"obstacles": [{"type": "particles", "positions": [[1, 1], [9, 1]]}]}"#);
+        assert!(msg.contains("`obstacles[0].positions[1][0]`"), "{msg}");
+    }
+
+    #[test]
+    fn the_radius_limits_are_the_validators() {
+        let mut s = Scene::default();
+        let (lo, hi) = s.particle_radius_limits();
+        assert!(lo < 1e-4 && hi == 0.75, "{lo} {hi}");
+        // Without fluid for the max_particles check to count.
+        s.fluid[0].max = [2.0 * hi, 2.0 * hi];
+        for (r, ok) in [(hi, true), (hi * 1.001, false)] {
+            s.particle_radius = r;
+            assert_eq!(s.validate().is_ok(), ok, "r = {r}");
+        }
+        s.fluid[0].max = [1.0, 2.0];
+        s.max_particles = 50_000_000;
+        for (r, key) in [
+            (lo * 1.001, "max_particles"),
+            (lo * 0.999, "particle_radius"),
+        ] {
+            s.particle_radius = r;
+            let e = s.validate().unwrap_err().to_string();
+            assert!(e.contains(&format!("`{key}`")), "r = {r}: {e}");
+        }
     }
 
     #[test]

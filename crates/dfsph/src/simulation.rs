@@ -83,6 +83,10 @@ pub struct Simulation {
     pub(crate) boundary: BoundaryParticles,
     /// Body 0 is the tank.
     pub(crate) bodies: Vec<Body>,
+    /// The polylines of the walls drawn since the start ([`crate::Action::AddWall`]), as
+    /// drawn: the bodies after the scene's obstacles, in order. A saved state writes them back
+    /// as obstacles ([`Self::to_scene`]).
+    pub(crate) drawn_walls: Vec<Vec<Vec2>>,
     /// How far the tank's first wall layer lies outside its interior, below and left of it
     /// and above and right of it, m ([`Self::tank_containment`]).
     tank_wall_margins: (Vec2, Vec2),
@@ -172,6 +176,7 @@ impl Simulation {
             fluid: FluidParticles::default(),
             boundary: BoundaryParticles::default(),
             bodies: Vec::new(),
+            drawn_walls: Vec::new(),
             tank_wall_margins: (Vec2::ZERO, Vec2::ZERO),
             wall_gamma: boundary::wall_volume_correction(&kernel, d),
             max_factor: settings.max_factor_ratio * solver::lattice_factor(&kernel, d, volume),
@@ -225,6 +230,10 @@ impl Simulation {
                     let pts: Vec<Vec2> = points.iter().map(|&p| to_vec2(p)).collect();
                     samples.add_polyline(&pts, d, body)
                 }
+                Obstacle::Particles { positions } => {
+                    let pts: Vec<Vec2> = positions.iter().map(|&p| to_vec2(p)).collect();
+                    samples.add_points(&pts, body)
+                }
             }
         }
         // Lattice sites the obstacles cover stay empty: inside a solid box, or closer than one
@@ -237,7 +246,7 @@ impl Simulation {
                 Obstacle::Rect { min, max } => {
                     p.cmpge(to_vec2(*min)).all() && p.cmple(to_vec2(*max)).all()
                 }
-                Obstacle::Polyline { .. } => false,
+                Obstacle::Polyline { .. } | Obstacle::Particles { .. } => false,
             });
             inside_box || obstacle_grid.any_near(p)
         };
@@ -277,6 +286,14 @@ impl Simulation {
                     sim.fluid.push(p, v, id);
                 }
             }
+        }
+        // Listed particles go exactly where the scene puts them, next to walls included: they
+        // are a state saved while the water pressed against them.
+        for (i, &p) in scene.particles.positions.iter().enumerate() {
+            let id = sim.next_id;
+            sim.next_id += 1;
+            sim.fluid
+                .push(to_vec2(p), to_vec2(scene.particles.velocity(i)), id);
         }
         sim.add_boundary_samples(samples);
         if let Some(p) = sim

@@ -2,6 +2,8 @@
 //! its own subset of them.
 #![allow(dead_code)]
 
+pub mod xvfb;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

@@ -142,6 +142,16 @@ impl BoundarySamples {
         }
     }
 
+    /// Boundary particles exactly where given (a wall saved particle by particle), with
+    /// Akinci's volume estimate like the other obstacles.
+    pub fn add_points(&mut self, points: &[Vec2], body: BodyId) {
+        for &p in points {
+            self.positions.push(p);
+            self.bodies.push(body);
+            self.lattice_area.push(None);
+        }
+    }
+
     /// A wall along a polyline: two parallel rows at ±d/2 from the line, spacing ≈ d.
     pub fn add_polyline(&mut self, points: &[Vec2], d: f32, body: BodyId) {
         for seg in points.windows(2) {

@@ -1,0 +1,256 @@
+//! Scene files in the viewer: the running state saved as a scene that `dfsph2d run` and
+//! `dfsph2d view` accept ([`saved_scene`], [`save_timestamped`]), scene files opened from the
+//! window (a file dialog, or a `.json` dropped on it: [`SceneOpener`]), and the particle
+//! radius slider's range ([`radius_range`]), which must hold the scene's own radius: a scene
+//! runs exactly as written.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use anyhow::{anyhow, Context as _};
+use dfsph::{Scene, Simulation};
+use eframe::egui;
+use egui_file_dialog::{DialogState, FileDialog};
+
+/// The particle radius slider's range, m: what the scene validator accepts for this tank
+/// ([`Scene::particle_radius_limits`]), raised to where the fluid blocks would hold about
+/// `max_particles` and lowered to where the narrowest block is one spacing wide (both
+/// validator rules too), and always including the scene's own radius. `None` for a scene that
+/// lists its particles: they are one resolution and cannot be resampled at another.
+pub fn radius_range(scene: &Scene, max_particles: usize) -> Option<(f64, f64)> {
+    if !scene.particles.is_empty() {
+        return None;
+    }
+    let (lo, hi) = scene.particle_radius_limits();
+    // A block of area A holds about A/d² = A/(4r²) particles.
+    let area: f64 = scene
+        .fluid
+        .iter()
+        .map(|b| (b.max[0] - b.min[0]) * (b.max[1] - b.min[1]))
+        .sum();
+    let lo = lo.max(0.5 * (area / max_particles.max(1) as f64).sqrt());
+    let narrowest = scene
+        .fluid
+        .iter()
+        .map(|b| (b.max[0] - b.min[0]).min(b.max[1] - b.min[1]))
+        .fold(f64::INFINITY, f64::min);
+    let hi = hi.min(0.5 * narrowest);
+    let r = scene.particle_radius;
+    Some((lo.min(r), hi.max(r)))
+}
+
+/// The simulation as it stands, as a scene file's contents ([`Simulation::to_scene`]), with
+/// the `max_particles` the scene was loaded with (the viewer runs with a smaller pour budget),
+/// and checked by the scene validator, so that what is written loads again.
+pub fn saved_scene(sim: &Simulation, max_particles: usize) -> anyhow::Result<Scene> {
+    let mut scene = sim.to_scene();
+    scene.max_particles = max_particles.max(scene.fluid_particle_count());
+    scene.description = format!(
+        "`{}` saved by the viewer at t = {:.3} s ({} particles)",
+        sim.scene().name,
+        sim.time(),
+        sim.fluid_count()
+    );
+    scene
+        .validate()
+        .map_err(|e| anyhow!("the state cannot be saved as a scene: {e}"))?;
+    Ok(scene)
+}
+
+/// Write `scene` to `path` whole or not at all: a reader never sees half a file.
+pub fn write_scene(path: &Path, scene: &Scene) -> anyhow::Result<()> {
+    dfsph_io::atomic::write_atomic(path, |w| {
+        w.write_all(scene.to_json_compact_points().as_bytes())?;
+        Ok(())
+    })
+    .with_context(|| format!("writing {}", path.display()))
+}
+
+/// Save `scene` as `scene-YYYYMMDD-HHMMSS.json` (UTC) in `dir`, with `-2`, `-3`, ... when
+/// that name is taken; never overwrites a file. Returns the path written.
+pub fn save_timestamped(dir: &Path, scene: &Scene) -> anyhow::Result<PathBuf> {
+    let secs = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let stem = format!("scene-{}", crate::export::utc_stamp(secs));
+    for k in 1..10_000 {
+        let path = match k {
+            1 => dir.join(format!("{stem}.json")),
+            _ => dir.join(format!("{stem}-{k}.json")),
+        };
+        // Claim the name first (`create_new` fails if it exists, also against another
+        // process saving at the same moment), then fill it atomically.
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&path)
+        {
+            Ok(_) => {
+                if let Err(e) = write_scene(&path, scene) {
+                    let _ = std::fs::remove_file(&path);
+                    return Err(e);
+                }
+                return Ok(path);
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(anyhow!("cannot create {}: {e}", path.display())),
+        }
+    }
+    Err(anyhow!(
+        "no free file name {stem}-N.json in {}",
+        dir.display()
+    ))
+}
+
+/// Read and validate a scene file; the error names the file and, for a bad scene, the key
+/// (the scene validator's message).
+pub fn read_scene(path: &Path) -> anyhow::Result<Scene> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    Scene::from_json(&text).map_err(|e| anyhow!("{}: {e}", path.display()))
+}
+
+/// Paths of the files dropped on the window this frame (drag and drop).
+pub fn dropped_paths(input: &egui::InputState) -> Vec<PathBuf> {
+    input
+        .raw
+        .dropped_files
+        .iter()
+        .filter_map(|f| f.path.clone())
+        .collect()
+}
+
+/// The "Open scene…" dialog: egui's own widgets (no desktop portal or GTK needed), showing
+/// directories and `.json` files.
+pub struct SceneOpener {
+    dialog: FileDialog,
+}
+
+impl Default for SceneOpener {
+    fn default() -> Self {
+        let json: Arc<dyn Fn(&Path) -> bool + Send + Sync> = Arc::new(|p: &Path| {
+            p.extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+        });
+        let dialog = FileDialog::new()
+            .title("Open scene")
+            .add_file_filter("scene files (.json)", json)
+            .default_file_filter("scene files (.json)")
+            .initial_directory(std::env::current_dir().unwrap_or_else(|_| PathBuf::from(".")));
+        Self { dialog }
+    }
+}
+
+impl SceneOpener {
+    /// Show the dialog, in the directory the viewer was started in.
+    pub fn open(&mut self) {
+        self.dialog.select_file();
+    }
+
+    /// Whether the dialog is showing.
+    pub fn is_open(&self) -> bool {
+        self.dialog.state() == DialogState::Open
+    }
+
+    /// Draw the dialog if it is open; the file the user picked, once.
+    pub fn update(&mut self, ctx: &egui::Context) -> Option<PathBuf> {
+        self.dialog.update(ctx);
+        self.dialog.take_selected()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn coarse() -> Scene {
+        let mut s = dfsph::scene::builtin("dam-break").unwrap();
+        s.particle_radius = 0.05;
+        s
+    }
+
+    #[test]
+    fn the_radius_range_holds_the_scenes_radius_and_stays_within_the_validator() {
+        let mut s = coarse();
+        for r in [0.0025, 0.004, 0.06, 0.5] {
+            s.particle_radius = r;
+            let (lo, hi) = radius_range(&s, 1_000_000).unwrap();
+            assert!(lo <= r && r <= hi, "{r} in {lo}..{hi}");
+        }
+        // The dam break's 2 m² of water reaches a million particles at r ≈ 0.7 mm; its 1 m
+        // wide column is one spacing wide at r = 0.5 m (the tank would allow 0.75 m).
+        let (lo, hi) = radius_range(&coarse(), 1_000_000).unwrap();
+        assert!((lo - 0.000707).abs() < 1e-5 && hi == 0.5, "{lo} {hi}");
+        for r in [lo * 1.01, hi] {
+            let mut s = coarse();
+            s.particle_radius = r;
+            s.validate().unwrap_or_else(|e| panic!("r = {r}: {e}"));
+        }
+        let saved = Simulation::new(&coarse()).unwrap().to_scene();
+        assert_eq!(radius_range(&saved, 1_000_000), None);
+    }
+
+    #[test]
+    fn a_saved_scene_is_written_once_per_name_and_reads_back() {
+        let dir = std::env::temp_dir().join(format!("dfsph-viewer-scene-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut sim = Simulation::new(&coarse()).unwrap();
+        for _ in 0..10 {
+            sim.step();
+        }
+        let scene = saved_scene(&sim, 1_000_000).unwrap();
+        assert_eq!(scene.max_particles, 1_000_000);
+        let a = save_timestamped(&dir, &scene).unwrap();
+        let b = save_timestamped(&dir, &scene).unwrap();
+        assert_ne!(a, b);
+        let name = a.file_name().unwrap().to_str().unwrap().to_string();
+        assert!(
+            name.starts_with("scene-") && name.ends_with(".json"),
+            "{name}"
+        );
+        let back = read_scene(&b).unwrap();
+        assert_eq!(back, scene);
+        assert_eq!(
+            Simulation::new(&back).unwrap().fluid_count(),
+            sim.fluid_count()
+        );
+
+        // A bad file: the error names the file and the key.
+        let bad = dir.join("bad.json");
+        std::fs::write(&bad, r#"{"particles": {"positions": [[0.5, 9]]}}"#).unwrap();
+        let e = format!("{:#}", read_scene(&bad).unwrap_err());
+        assert!(
+            e.contains("bad.json") && e.contains("`particles.positions[0][1]`"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_state_with_no_water_left_is_not_saved() {
+        let mut sim = Simulation::new(&coarse()).unwrap();
+        sim.apply(&dfsph::Action::Erase {
+            at: dfsph::Vec2::new(0.5, 1.0),
+            radius: 5.0,
+        });
+        assert_eq!(sim.fluid_count(), 0);
+        let e = saved_scene(&sim, 1000).unwrap_err().to_string();
+        assert!(e.contains("`fluid`"), "{e}");
+    }
+
+    #[test]
+    fn dropped_files_are_read_from_the_frames_input() {
+        let ctx = egui::Context::default();
+        let raw = egui::RawInput {
+            dropped_files: vec![egui::DroppedFile {
+                path: Some(PathBuf::from("/tmp/a.json")),
+                ..Default::default()
+            }],
+            ..Default::default()
+        };
+        let mut got = Vec::new();
+        let _ = ctx.run(raw, |ctx| got = ctx.input(dropped_paths));
+        assert_eq!(got, vec![PathBuf::from("/tmp/a.json")]);
+    }
+}
