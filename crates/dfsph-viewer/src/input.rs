@@ -303,7 +303,8 @@ impl InputMapper {
                 out.push(Command::LoadScene(i));
             }
         }
-        if input.key_pressed(Key::C) {
+        // Two presses within one slow frame are two steps.
+        for _ in 0..input.num_presses(Key::C) {
             out.push(Command::CycleColoring);
         }
         if input.key_pressed(Key::F12) {
