@@ -239,7 +239,7 @@ fn grid_marks(g: GridInput, min_points: f32) -> Vec<GridMark> {
 }
 
 /// A tick label: as many decimals as the step needs and no more ("0.003", "0.25", "40"),
-/// thousands as "k" ("12k") and tiny or huge steps in scientific notation ("2e-5"); exactly
+/// thousands as "k" ("12k", "24.3k") and tiny or huge steps in scientific notation ("2e-5"); exactly
 /// "0" at zero.
 pub fn format_tick(value: f64, step: f64) -> String {
     if !value.is_finite() {
@@ -253,7 +253,8 @@ pub fn format_tick(value: f64, step: f64) -> String {
         let digits = (value.abs().log10().floor() - step.log10().floor()).max(0.0) as usize;
         return format!("{value:.digits$e}");
     }
-    if step >= 1000.0 {
+    // Thousands as "k" where the step is, or the value has five digits or more.
+    if step >= 1000.0 || (value.abs() >= 10_000.0 && step >= 100.0) {
         let digits = (3.0 - step.log10().floor()).max(0.0) as usize;
         return format!("{:.digits$}k", value / 1000.0);
     }
@@ -465,6 +466,7 @@ mod tests {
         assert_eq!(format_tick(40.0, 20.0), "40");
         assert_eq!(format_tick(12000.0, 2000.0), "12k");
         assert_eq!(format_tick(2500.0, 500.0), "2500");
+        assert_eq!(format_tick(24282.0, 500.0), "24.3k");
         assert_eq!(format_tick(0.0015, 0.0005), "0.0015");
         assert_eq!(format_tick(3e-5, 1e-5), "3e-5");
         assert_eq!(format_tick(-1e-18, 0.001), "0");
