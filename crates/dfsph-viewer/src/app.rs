@@ -302,6 +302,8 @@ impl ViewerApp {
                     let scene = b.scene();
                     let max = scene.max_particles;
                     self.load_other(ctx, scene, max);
+                    // Another tank: a zoom into the last one means nothing there.
+                    self.camera.reset();
                 }
             }
             Command::SetParticleRadius(r) => {
@@ -793,5 +795,27 @@ impl ViewerApp {
             painter.rect_filled(rect.expand(2.0), 3.0, Color32::from_black_alpha(170));
             painter.galley(rect.min, galley, color);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dfsph::scene::Probe;
+
+    #[test]
+    fn probe_readings_carry_their_unit_and_sensible_digits() {
+        let p = Probe::Pressure {
+            name: "p".into(),
+            at: [1.0, 0.1],
+        };
+        let h = Probe::WaterLevel {
+            name: "h".into(),
+            x: 2.0,
+        };
+        assert_eq!(probe_reading(&p, 850.4), "850 Pa");
+        assert_eq!(probe_reading(&p, 1612.0), "1.61 kPa");
+        assert_eq!(probe_reading(&p, 24282.0), "24.3 kPa");
+        assert_eq!(probe_reading(&h, 0.51234), "0.512 m");
     }
 }
