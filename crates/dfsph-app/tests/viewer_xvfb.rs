@@ -9,9 +9,11 @@
 //!    are dropped without focus), holds `d` and then `a` for the same time each;
 //!    if the session shows that either key was held for less than [`MIN_HELD_SIM_S`] of
 //!    simulated time (a loaded machine renders few frames), it runs the viewer again with
-//!    the keys held longer, in proportion;
+//!    the keys held longer, in proportion; then turns the mouse wheel [`WHEEL_NOTCHES`]
+//!    notches over the tank (zoom in);
 //! 3. runs a second viewer the same way and leaves it alone;
-//! 4. checks both runs' `particles.csv`, `session.json` and `screenshot.png`;
+//! 4. checks both runs' `particles.csv`, `session.json` (the stirred view zoomed in, the
+//!    untouched one not) and `screenshot.png`;
 //! 5. replays the stirred run's `--record` file with `dfsph2d run --replay` and checks that
 //!    it reaches the same final state.
 //!
@@ -39,6 +41,8 @@ const FIRST_HOLD_S: f64 = 2.0;
 const MIN_HELD_SIM_S: f64 = 0.08;
 /// Tries, each holding the keys longer, before the machine is declared too slow.
 const HOLD_TRIES: usize = 4;
+/// Wheel notches turned over the tank in the stirred run (each zooms in by about 10-20 %).
+const WHEEL_NOTCHES: &str = "3";
 
 /// What the viewer prints when it cannot connect to the X server.
 const NO_X_CONNECTION: &str = "Failed to open connection to X server";
@@ -94,6 +98,15 @@ fn try_run_viewer(display: &str, dir: &Path, hold_s: Option<f64>) -> Result<(), 
             sleep(Duration::from_secs_f64(hold));
             xdotool(display, &["keyup", key]);
         }
+        // Over the tank (the world is drawn left of the side panel, under the HUD), the
+        // wheel zooms in. Pointer events need no focus; every event is queued, so a slow
+        // frame rate only delays them.
+        xdotool(display, &["mousemove", "--window", &wid, "400", "450"]);
+        sleep(Duration::from_millis(300));
+        xdotool(
+            display,
+            &["click", "--repeat", WHEEL_NOTCHES, "--delay", "100", "4"],
+        );
     }
 
     let deadline = Instant::now() + Duration::from_secs_f64(exit_after + 60.0);
@@ -178,6 +191,15 @@ fn surface_roughness(p: &[[f64; 6]]) -> f64 {
     let top: Vec<f64> = top.into_iter().filter(|t| *t > f64::MIN).collect();
     let mean = top.iter().sum::<f64>() / top.len() as f64;
     (top.iter().map(|t| (t - mean).powi(2)).sum::<f64>() / top.len() as f64).sqrt()
+}
+
+/// The view's zoom when the viewer closed, from `session.json`.
+fn view_zoom(dir: &Path) -> f64 {
+    let text = std::fs::read_to_string(dir.join("session.json")).expect("session.json");
+    let session: serde_json::Value = serde_json::from_str(&text).unwrap();
+    session["view"]["zoom"]
+        .as_f64()
+        .expect("session.json has view.zoom")
 }
 
 /// Shake actions the viewer applied, from `session.json`: (simulated time, direction).
@@ -327,6 +349,15 @@ fn stirring_the_tank_under_xvfb_moves_the_water() {
          {xb:.4} m (needs > 0.03 m apart), rms speed {va:.4} vs {vb:.4} m/s (needs > 4x), \
          surface s.d. {sa:.4} vs {sb:.4} m (needs > 4x and 0.02 m)"
     );
+
+    // The wheel zoomed the stirred view in, and nothing zoomed the untouched one.
+    let (za, zb) = (view_zoom(&stirred), view_zoom(&untouched));
+    eprintln!("view zoom:    stirred {za:.3}, untouched {zb:.3}");
+    assert!(
+        za > 1.1,
+        "three wheel notches over the tank should zoom in: zoom {za}"
+    );
+    assert_eq!(zb, 1.0, "the untouched view should be the fitted one");
 
     check_screenshot(&stirred);
     check_screenshot(&untouched);

@@ -17,15 +17,21 @@ use crate::export;
 use crate::hud::{self, FrameStats, History, HudInfo, Rate};
 use crate::input::{Command, InputMapper, Tool, ViewInput};
 use crate::panel::{self, PanelState};
-use crate::render::{self, Coloring, ViewTransform};
+use crate::render::{self, ColorScale, Coloring, ViewTransform};
 use crate::scene_file::{self, SceneOpener};
 use crate::stepper::Stepper;
+use crate::view::{self, Camera, Layout};
 use crate::ViewerOptions;
 
 /// How long `--exit-after` waits for the screenshot before giving up.
 const SCREENSHOT_TIMEOUT: Duration = Duration::from_secs(10);
 /// How long a status message stays in the panel.
 const STATUS_DURATION: Duration = Duration::from_secs(6);
+/// How often the probes' readings on the view are refreshed: ten times a second, so the
+/// numbers can be read (every frame they would flicker) and cost little.
+const PROBE_INTERVAL: Duration = Duration::from_millis(100);
+/// The HUD's size before it has been drawn once, points.
+const HUD_SIZE_GUESS: egui::Vec2 = vec2(300.0, 170.0);
 
 /// Errors the app hit that `run` must report after the window closes.
 pub type Failures = Rc<RefCell<Vec<anyhow::Error>>>;
@@ -90,6 +96,22 @@ pub struct ViewerApp {
     mapper: InputMapper,
     paused: bool,
     coloring: Coloring,
+    /// The colour scale of each colouring, in [`Coloring::ALL`] order.
+    scales: [ColorScale; 3],
+    /// The shown field's values (one per fluid particle) and scratch room for percentiles.
+    values: Vec<f32>,
+    scratch: Vec<f32>,
+    /// The user's zoom and pan.
+    camera: Camera,
+    /// The room kept for the HUD beside the tank: the largest size it has had in a view of
+    /// this size (so the tank does not jump when a line such as PAUSED comes and goes), and
+    /// that view size.
+    hud_room: (egui::Vec2, egui::Vec2),
+    /// The probes' last readings and when they were taken.
+    probe_readings: Vec<f64>,
+    probes_read: Option<Instant>,
+    /// Where the HUD was drawn last frame (its size is known only once drawn).
+    last_hud_rect: Option<egui::Rect>,
     time_scale: f64,
     radius_edit: f64,
     show_help: bool,
@@ -139,6 +161,8 @@ impl ViewerApp {
             dir: opts.save_on_exit,
             started: None,
         });
+        let scales =
+            Coloring::ALL.map(|c| ColorScale::new(c.auto_by_default(), c.scene_range(&sim)));
         Ok(Self {
             mapper: InputMapper::new(sim.gravity(), 2.0 * sim.particle_radius()),
             radius_edit: sim.scene().particle_radius,
@@ -148,6 +172,14 @@ impl ViewerApp {
             opener: SceneOpener::default(),
             paused: false,
             coloring: Coloring::default(),
+            scales,
+            values: Vec::new(),
+            scratch: Vec::new(),
+            camera: Camera::default(),
+            hud_room: (HUD_SIZE_GUESS, egui::Vec2::ZERO),
+            probe_readings: Vec::new(),
+            probes_read: None,
+            last_hud_rect: None,
             time_scale: 1.0,
             show_help: false,
             history: History::default(),
@@ -167,6 +199,23 @@ impl ViewerApp {
             session_steps: 0,
             recorder: None,
         })
+    }
+
+    /// Auto colour scales start over at the new scene's data; fixed ones stay where the
+    /// user (or the default) fixed them.
+    fn restart_scales(&mut self) {
+        for scale in &mut self.scales {
+            scale.restart();
+        }
+    }
+
+    /// The colour scale of the shown colouring.
+    fn scale_mut(&mut self) -> &mut ColorScale {
+        let i = Coloring::ALL
+            .iter()
+            .position(|&c| c == self.coloring)
+            .unwrap_or(0);
+        &mut self.scales[i]
     }
 
     /// Record the session into `recorder` (`view --record`).
@@ -211,6 +260,8 @@ impl ViewerApp {
                     .reset(self.sim.gravity(), 2.0 * self.sim.particle_radius());
                 self.radius_edit = self.sim.scene().particle_radius;
                 self.history.clear();
+                self.restart_scales();
+                self.probes_read = None;
                 ctx.send_viewport_cmd(ViewportCommand::Title(window_title(self.sim.scene())));
                 true
             }
@@ -307,6 +358,8 @@ impl ViewerApp {
             Command::LoadScene(i) => {
                 if let Some(b) = BUILTIN_SCENES.get(i) {
                     self.load_as_loaded(ctx, b.scene());
+                    // Another tank: a zoom into the last one means nothing there.
+                    self.camera.reset();
                 }
             }
             Command::SaveScene => self.save_scene(),
@@ -324,6 +377,23 @@ impl ViewerApp {
                 ctx.send_viewport_cmd(ViewportCommand::Screenshot);
             }
             Command::ToggleHelp => self.show_help = !self.show_help,
+            // The view commands are applied where the view's geometry is known (`update`).
+            Command::ZoomView { .. } | Command::PanView { .. } | Command::ResetView => {}
+        }
+    }
+
+    /// Apply a zoom, pan or view reset to the camera of the world `lo`–`hi` shown in `rect`.
+    fn apply_view(&mut self, cmd: &Command, lo: dfsph::Vec2, hi: dfsph::Vec2, rect: egui::Rect) {
+        match cmd {
+            Command::ZoomView { factor, about } => {
+                self.camera.zoom_about(*factor, *about, lo, hi, rect)
+            }
+            Command::PanView { delta } => {
+                let scale = self.camera.transform(lo, hi, rect).scale();
+                self.camera.pan(*delta, scale);
+            }
+            Command::ResetView => self.camera.reset(),
+            _ => {}
         }
     }
 
@@ -423,6 +493,10 @@ impl ViewerApp {
             "fluid_particles": self.sim.fluid_count(),
             "clamped": self.sim.total_clamped(),
             "non_finite": self.sim.total_non_finite(),
+            "view": {
+                "zoom": self.camera.zoom(),
+                "offset": [self.camera.offset().x, self.camera.offset().y],
+            },
             "actions": actions,
         });
         let path = dir.join("session.json");
@@ -431,6 +505,23 @@ impl ViewerApp {
         // The state as a scene that `run` and `view` load (session.json is a record).
         let scene = scene_file::saved_scene(&self.sim, self.requested_max_particles)?;
         scene_file::write_scene(&dir.join("scene.json"), &scene)
+    }
+}
+
+/// Colour of probe markers and readings: amber, apart from every colour map's water.
+const PROBE_COLOR: Color32 = Color32::from_rgb(255, 200, 60);
+
+/// A probe's reading with its unit: "1.23 kPa", "850 Pa", "0.512 m".
+pub fn probe_reading(probe: &dfsph::scene::Probe, value: f64) -> String {
+    match probe {
+        dfsph::scene::Probe::Pressure { .. } if value.abs() >= 10_000.0 => {
+            format!("{:.1} kPa", value / 1000.0)
+        }
+        dfsph::scene::Probe::Pressure { .. } if value.abs() >= 1000.0 => {
+            format!("{:.2} kPa", value / 1000.0)
+        }
+        dfsph::scene::Probe::Pressure { .. } => format!("{value:.0} Pa"),
+        dfsph::scene::Probe::WaterLevel { .. } => format!("{value:.3} m"),
     }
 }
 
@@ -503,6 +594,8 @@ impl eframe::App for ViewerApp {
                         mapper: &mut self.mapper,
                         time_scale: &mut self.time_scale,
                         coloring: &mut self.coloring,
+                        scales: &mut self.scales,
+                        view_fitted: self.camera.is_fitted(),
                         radius_edit: &mut self.radius_edit,
                         radius_range: scene_file::radius_range(
                             self.sim.scene(),
@@ -535,11 +628,14 @@ impl eframe::App for ViewerApp {
                 (rect, response, ui.painter_at(rect))
             })
             .inner;
+        let layout = self.layout(rect);
         let (lo, hi) = render::world_bounds(&self.sim);
-        let transform = ViewTransform::fit(lo, hi, rect.shrink(8.0));
+        let transform = self.camera.transform(lo, hi, layout.world);
         let hover = ctx.input(|i| i.pointer.hover_pos());
-        let over_view =
-            response.hovered() || response.is_pointer_button_down_on() || response.dragged();
+        // The tools and the wheel act over the world's rectangle, not over the HUD and the
+        // colour bar beside it (a drag that started in it keeps going anywhere).
+        let over_view = (response.hovered() && hover.is_some_and(|p| layout.world.contains(p)))
+            || response.dragged();
         let view = ViewInput {
             pointer: hover.filter(|_| over_view).map(|p| transform.to_world(p)),
             // The open-scene dialog's keys are its own.
@@ -549,6 +645,7 @@ impl eframe::App for ViewerApp {
 
         // Actions between steps, then this frame's slice of simulated time.
         for cmd in commands {
+            self.apply_view(&cmd, lo, hi, layout.world);
             self.apply(ctx, cmd);
         }
         // A scene file picked in the dialog or dropped on the window.
@@ -559,8 +656,20 @@ impl eframe::App for ViewerApp {
         }
         // A reset or a new scene may have changed the world bounds.
         let (lo, hi) = render::world_bounds(&self.sim);
-        let transform = ViewTransform::fit(lo, hi, rect.shrink(8.0));
-        self.draw(ctx, &painter, rect, &transform, hover.filter(|_| over_view));
+        let transform = self.camera.transform(lo, hi, layout.world);
+        if self.mapper.tool() == Tool::Pan {
+            ctx.set_cursor_icon(egui::CursorIcon::Grabbing);
+        }
+        let world_painter = painter.with_clip_rect(layout.world);
+        self.draw(
+            ctx,
+            &painter,
+            &world_painter,
+            &layout,
+            &transform,
+            hover.filter(|_| over_view),
+            frame_seconds as f32,
+        );
         hud::help_window(ctx, &mut self.show_help);
         // The simulation steps while this frame is drawn, until the next one begins.
         if !self.paused && !exiting {
@@ -584,6 +693,25 @@ impl ViewerApp {
         self.record(&away.steps);
     }
 
+    /// Where the world, the HUD and the colour bar go in the view `rect`, keeping room for
+    /// the HUD as large as it has been in a view of this size.
+    fn layout(&mut self, rect: egui::Rect) -> Layout {
+        let size = self.hud_room.1;
+        if size != rect.size() {
+            self.hud_room = (egui::Vec2::ZERO, rect.size());
+        }
+        if let Some(r) = self.last_hud_rect.filter(|r| r.is_positive()) {
+            self.hud_room.0 = self.hud_room.0.max(r.size());
+        }
+        let hud = if self.hud_room.0 == egui::Vec2::ZERO {
+            HUD_SIZE_GUESS
+        } else {
+            self.hud_room.0
+        };
+        let (lo, hi) = render::world_bounds(&self.sim);
+        view::layout(rect, hud, hi - lo)
+    }
+
     /// How much slower than asked simulated time runs (budget overruns and slow frames
     /// together), when it is noticeably slower.
     fn slowed(&self) -> Option<f64> {
@@ -591,23 +719,37 @@ impl ViewerApp {
         (!self.paused && self.sim_rate.get() > 0.0 && pace < 0.95).then_some(pace)
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn draw(
         &mut self,
         ctx: &egui::Context,
         painter: &egui::Painter,
-        rect: egui::Rect,
+        world_painter: &egui::Painter,
+        layout: &Layout,
         transform: &ViewTransform,
         hover: Option<egui::Pos2>,
+        frame_seconds: f32,
     ) {
-        self.coloring.colors(&self.sim, &mut self.fluid_colors);
+        // The colours: the field, the scale following it (when auto), the colour map.
+        self.coloring.values(&self.sim, &mut self.values);
+        let coloring = self.coloring;
+        let target = if self.scale_mut().auto {
+            coloring.auto_target(&self.values, &mut self.scratch)
+        } else {
+            None
+        };
+        self.scale_mut().follow(target, frame_seconds);
+        let scale = *self.scale_mut();
+        coloring.colors(&self.values, scale.range, &mut self.fluid_colors);
         let mesh = render::particle_mesh(&self.sim, transform, self.disc.id(), &self.fluid_colors);
-        painter.add(egui::Shape::mesh(mesh));
+        world_painter.add(egui::Shape::mesh(mesh));
+        self.draw_probes(world_painter, transform);
 
         // Wall preview and the tool circle.
         if let Some(wall) = self.mapper.wall_preview() {
             let pts: Vec<_> = wall.iter().map(|&p| transform.to_screen(p)).collect();
             let width = (2.0 * self.sim.particle_radius() * transform.scale()).max(2.0);
-            painter.add(egui::Shape::line(
+            world_painter.add(egui::Shape::line(
                 pts,
                 Stroke::new(width, render::WALL_COLOR.gamma_multiply(0.7)),
             ));
@@ -619,21 +761,27 @@ impl ViewerApp {
                 Tool::Push => Color32::from_rgb(255, 170, 80),
                 Tool::Pour => Color32::from_rgb(80, 140, 255),
                 Tool::Erase => Color32::from_rgb(255, 80, 80),
-                Tool::Wall => Color32::TRANSPARENT,
+                Tool::Wall | Tool::Pan => Color32::TRANSPARENT,
                 Tool::Idle if erase_armed => Color32::from_rgb(255, 80, 80),
                 Tool::Idle => Color32::from_white_alpha(110),
             };
-            painter.circle_stroke(
+            world_painter.circle_stroke(
                 pos,
                 self.mapper.tool_radius * transform.scale(),
                 Stroke::new(1.5, color),
             );
         }
 
-        let range = self.coloring.range(&self.sim);
-        render::legend(painter, rect, self.coloring, range);
+        render::legend(
+            painter,
+            layout.legend,
+            layout.legend_horizontal,
+            coloring,
+            &scale,
+        );
 
         let stats = *self.sim.stats();
+        let zoom = self.camera.zoom();
         let info = HudInfo {
             scene: &self.sim.scene().name,
             fps: self.fps.get(),
@@ -647,11 +795,100 @@ impl ViewerApp {
             slowed: self.slowed(),
             clamped: self.sim.total_clamped(),
             non_finite: self.sim.total_non_finite(),
+            zoom: (!self.camera.is_fitted()).then_some(zoom),
         };
-        egui::Area::new(egui::Id::new("hud"))
-            .fixed_pos(rect.left_top() + vec2(8.0, 8.0))
+        let shown = egui::Area::new(egui::Id::new("hud"))
+            .fixed_pos(layout.hud)
             .interactable(false)
             .show(ctx, |ui| hud::hud(ui, &info));
+        self.last_hud_rect = Some(shown.response.rect);
+    }
+
+    /// The scene's probes on the view: a ring for each pressure probe, a dashed line with a
+    /// bar at the water level for each gauge, and each one's name and reading beside it, so
+    /// that a user sees what `dfsph2d run` would write into `probes.csv`.
+    fn draw_probes(&mut self, painter: &egui::Painter, transform: &ViewTransform) {
+        let probes = &self.sim.scene().probes;
+        if probes.is_empty() {
+            return;
+        }
+        let due = self
+            .probes_read
+            .is_none_or(|t| t.elapsed() >= PROBE_INTERVAL);
+        if due || self.probe_readings.len() != probes.len() {
+            self.probe_readings = dfsph::probes::sample_all(&self.sim);
+            self.probes_read = Some(Instant::now());
+        }
+        let scene = self.sim.scene();
+        // Probes are fixed to the tank: they move with it when it is shaken.
+        let (lo, hi) = self.sim.tank_interior();
+        let offset = lo - dfsph::Vec2::new(scene.tank.min[0] as f32, scene.tank.min[1] as f32);
+        let color = PROBE_COLOR;
+        let font = egui::FontId::proportional(12.0);
+        for (probe, &value) in probes.iter().zip(&self.probe_readings) {
+            let reading = probe_reading(probe, value);
+            let (anchor, align) = match probe {
+                dfsph::scene::Probe::Pressure { at, .. } => {
+                    let p =
+                        transform.to_screen(dfsph::Vec2::new(at[0] as f32, at[1] as f32) + offset);
+                    painter.circle_stroke(p, 5.0, Stroke::new(2.0, Color32::BLACK));
+                    painter.circle_stroke(p, 5.0, Stroke::new(1.5, color));
+                    painter.circle_filled(p, 1.5, color);
+                    // Labels of probes on the right wall go to their left, inside the tank.
+                    let right_wall =
+                        (at[0] - scene.tank.max[0]).abs() <= scene.tank.edge_tolerance();
+                    if right_wall {
+                        (p - vec2(9.0, 0.0), egui::Align2::RIGHT_CENTER)
+                    } else {
+                        (p + vec2(9.0, 0.0), egui::Align2::LEFT_CENTER)
+                    }
+                }
+                dfsph::scene::Probe::WaterLevel { x, .. } => {
+                    let x = *x as f32 + offset.x;
+                    let bottom = transform.to_screen(dfsph::Vec2::new(x, lo.y));
+                    let top = transform.to_screen(dfsph::Vec2::new(x, hi.y));
+                    painter.add(egui::Shape::dashed_line(
+                        &[bottom, top],
+                        Stroke::new(1.0, color.gamma_multiply(0.8)),
+                        6.0,
+                        4.0,
+                    ));
+                    let level = transform.to_screen(dfsph::Vec2::new(x, lo.y + value as f32));
+                    painter.line_segment(
+                        [level - vec2(8.0, 0.0), level + vec2(8.0, 0.0)],
+                        Stroke::new(2.5, color),
+                    );
+                    (level + vec2(10.0, -9.0), egui::Align2::LEFT_BOTTOM)
+                }
+            };
+            let text = format!("{} {reading}", probe.name());
+            let galley = painter.layout_no_wrap(text, font.clone(), color);
+            let rect = align.anchor_size(anchor, galley.size());
+            painter.rect_filled(rect.expand(2.0), 3.0, Color32::from_black_alpha(170));
+            painter.galley(rect.min, galley, color);
+        }
+    }
+}
+
+#[cfg(test)]
+mod probe_tests {
+    use super::*;
+    use dfsph::scene::Probe;
+
+    #[test]
+    fn probe_readings_carry_their_unit_and_sensible_digits() {
+        let p = Probe::Pressure {
+            name: "p".into(),
+            at: [1.0, 0.1],
+        };
+        let h = Probe::WaterLevel {
+            name: "h".into(),
+            x: 2.0,
+        };
+        assert_eq!(probe_reading(&p, 850.4), "850 Pa");
+        assert_eq!(probe_reading(&p, 1612.0), "1.61 kPa");
+        assert_eq!(probe_reading(&p, 24282.0), "24.3 kPa");
+        assert_eq!(probe_reading(&h, 0.51234), "0.512 m");
     }
 }
 

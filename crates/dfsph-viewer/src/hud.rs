@@ -5,9 +5,9 @@ use std::collections::VecDeque;
 
 use dfsph::StepStats;
 use eframe::egui::{self, Color32, RichText};
-use egui_plot::{Legend, Line, Plot, PlotPoints};
+use egui_plot::{AxisHints, GridInput, GridMark, Legend, Line, Plot, PlotBounds, PlotPoints};
 
-use crate::input::KEY_HELP;
+use crate::input::key_help;
 
 /// Simulated seconds the plots show.
 pub const PLOT_WINDOW: f64 = 10.0;
@@ -95,10 +95,24 @@ impl History {
         self.samples.iter().map(|s| [s.time, f(s)]).collect()
     }
 
-    /// Three small plots side by side: density error, iterations, kinetic energy.
+    /// The time axis: the [`PLOT_WINDOW`] seconds from the oldest sample held (so the
+    /// curve grows from the left until the window is full, then scrolls).
+    pub fn time_range(&self) -> (f64, f64) {
+        let start = self.samples.front().map_or(0.0, |s| s.time);
+        (start, start + PLOT_WINDOW)
+    }
+
+    /// The value axis for the quantity `f` of the samples held: see [`value_range`].
+    pub fn value_range(&self, f: impl Fn(&Sample) -> f64) -> (f64, f64) {
+        value_range(self.samples.iter().map(f))
+    }
+
+    /// Three small plots side by side: density error, iterations, kinetic energy, each with
+    /// time in seconds along x and the quantity (its unit in the heading) along y.
     pub fn plots(&self, ui: &mut egui::Ui) {
         // Fill the panel below the labels, without asking it to grow.
         let height = (ui.available_height() - 24.0).max(30.0);
+        let (t0, t1) = self.time_range();
         let plot = |id: &str| {
             Plot::new(id)
                 .height(height)
@@ -107,30 +121,146 @@ impl History {
                 .allow_scroll(false)
                 .allow_boxed_zoom(false)
                 .allow_double_click_reset(false)
-                .include_y(0.0)
-                .y_axis_min_width(36.0)
+                // egui_plot's default grid has steps of powers of ten only, and hides the
+                // labels of steps closer than 20–60 points: on plots this small that leaves
+                // a lone "0". Steps of 1, 2 or 5 × 10ⁿ, as many as fit, with labels close
+                // enough to keep two or three on the shortest axis.
+                .x_grid_spacer(|g| grid_marks(g, X_TICK_POINTS))
+                .y_grid_spacer(|g| grid_marks(g, Y_TICK_POINTS))
+                .custom_x_axes(vec![AxisHints::new_x()
+                    .formatter(|m, _| format!("{} s", format_tick(m.value, m.step_size)))
+                    .label_spacing(X_TICK_POINTS - 10.0..=X_TICK_POINTS)])
+                .custom_y_axes(vec![AxisHints::new_y()
+                    .formatter(|m, _| format_tick(m.value, m.step_size))
+                    .label_spacing(Y_TICK_POINTS - 6.0..=Y_TICK_POINTS)
+                    .min_thickness(30.0)])
+        };
+        let bounds = |(lo, hi): (f64, f64)| PlotBounds::from_min_max([t0, lo], [t1, hi]);
+        // Headings on one line, cut short in narrow windows (the full text on hover).
+        let heading = |ui: &mut egui::Ui, text: &str| {
+            ui.add(egui::Label::new(text).truncate());
         };
         ui.columns(3, |cols| {
-            cols[0].label("avg density error (%) vs time (s)");
+            heading(&mut cols[0], "avg density error (%)");
+            let range = self.value_range(|s| s.density_error_pct);
             plot("plot-density-error").show(&mut cols[0], |p| {
+                p.set_plot_bounds(bounds(range));
                 p.line(Line::new(self.series(|s| s.density_error_pct)).name("density error"));
             });
-            cols[1].label("solver iterations per step");
+            heading(&mut cols[1], "solver iterations per step");
+            let range = value_range(
+                self.samples
+                    .iter()
+                    .flat_map(|s| [s.density_iterations as f64, s.divergence_iterations as f64]),
+            );
             plot("plot-iterations")
                 .legend(Legend::default().position(egui_plot::Corner::LeftTop))
                 .show(&mut cols[1], |p| {
+                    p.set_plot_bounds(bounds(range));
                     p.line(Line::new(self.series(|s| s.density_iterations as f64)).name("density"));
                     p.line(
                         Line::new(self.series(|s| s.divergence_iterations as f64))
                             .name("divergence"),
                     );
                 });
-            cols[2].label("kinetic energy (J/m)");
+            heading(&mut cols[2], "kinetic energy (J/m)");
+            let range = self.value_range(|s| s.kinetic_energy);
             plot("plot-energy").show(&mut cols[2], |p| {
+                p.set_plot_bounds(bounds(range));
                 p.line(Line::new(self.series(|s| s.kinetic_energy)).name("kinetic energy"));
             });
         });
     }
+}
+
+/// Least distance between labelled time ticks, points (labels such as "12.5 s").
+const X_TICK_POINTS: f32 = 48.0;
+/// Least distance between labelled value ticks, points (a line of text and a little air).
+const Y_TICK_POINTS: f32 = 20.0;
+/// egui_plot's default `grid_spacing` minimum, points: `GridInput::base_step_size` is this
+/// many points in plot units.
+const GRID_INPUT_POINTS: f64 = 8.0;
+
+/// The value axis for `values` (non-negative quantities: errors, counts, energies): from 0
+/// (or the least value, if negative) to the greatest value plus a 10 % margin, so the curve
+/// never touches the top. Never degenerate: all zero (or nothing yet) gives 0–1, and a span
+/// is at least a millionth of the values' size. Non-finite values are left out.
+pub fn value_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((0.0f64, 0.0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    let span = hi - lo;
+    let size = lo.abs().max(hi.abs());
+    if span <= 1e-6 * size || span < 1e-300 {
+        let pad = if size > 0.0 { 0.1 * size } else { 1.0 };
+        return (lo - if lo < 0.0 { pad } else { 0.0 }, hi + pad);
+    }
+    let margin = 0.1 * span;
+    (if lo < 0.0 { lo - margin } else { lo }, hi + margin)
+}
+
+/// The smallest "nice" step (1, 2 or 5 × 10ⁿ) at least `raw`; 1 for nonsense.
+pub fn nice_step(raw: f64) -> f64 {
+    if !(raw.is_finite() && raw > 0.0) {
+        return 1.0;
+    }
+    let decade = 10f64.powf(raw.log10().floor());
+    let m = raw / decade;
+    let f = [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .find(|f| m <= f * (1.0 + 1e-9))
+        .unwrap_or(10.0);
+    f * decade
+}
+
+/// Ticks at multiples of a nice step across `lo`–`hi`, at least `min_points` apart on an
+/// axis `points` long. Empty for an empty or degenerate axis.
+pub fn ticks(lo: f64, hi: f64, points: f64, min_points: f64) -> Vec<GridMark> {
+    let span = hi - lo;
+    if !(span > 0.0 && span.is_finite() && points > 0.0) {
+        return Vec::new();
+    }
+    let step = nice_step(span * min_points.max(1.0) / points);
+    let first = (lo / step - 1e-9).ceil() as i64;
+    let last = (hi / step + 1e-9).floor() as i64;
+    (first..=last.min(first + 1000))
+        .map(|k| GridMark {
+            value: k as f64 * step,
+            step_size: step,
+        })
+        .collect()
+}
+
+/// [`ticks`] for egui_plot's grid, from what it tells a grid spacer.
+fn grid_marks(g: GridInput, min_points: f32) -> Vec<GridMark> {
+    let (lo, hi) = g.bounds;
+    let points = (hi - lo) * GRID_INPUT_POINTS / g.base_step_size;
+    ticks(lo, hi, points, min_points as f64)
+}
+
+/// A tick label: as many decimals as the step needs and no more ("0.003", "0.25", "40"),
+/// thousands as "k" ("12k", "24.3k") and tiny or huge steps in scientific notation ("2e-5"); exactly
+/// "0" at zero.
+pub fn format_tick(value: f64, step: f64) -> String {
+    if !value.is_finite() {
+        return String::new();
+    }
+    if value.abs() < 1e-9 * step.abs().max(f64::MIN_POSITIVE) {
+        return "0".into();
+    }
+    let step = step.abs();
+    if !(1e-4..1e7).contains(&step) {
+        let digits = (value.abs().log10().floor() - step.log10().floor()).max(0.0) as usize;
+        return format!("{value:.digits$e}");
+    }
+    // Thousands as "k" where the step is, or the value has five digits or more.
+    if step >= 1000.0 || (value.abs() >= 10_000.0 && step >= 100.0) {
+        let digits = (3.0 - step.log10().floor()).max(0.0) as usize;
+        return format!("{:.digits$}k", value / 1000.0);
+    }
+    // A step of 0.0005 needs four decimals, one of 0.002 three.
+    let decimals = (-step.log10() - 1e-9).ceil().max(0.0) as usize;
+    format!("{value:.decimals$}")
 }
 
 /// Exponentially smoothed rate of events per second (frames, steps).
@@ -175,6 +305,8 @@ pub struct HudInfo<'a> {
     pub slowed: Option<f64>,
     pub clamped: u64,
     pub non_finite: u64,
+    /// The view's magnification when it is not the fitted view.
+    pub zoom: Option<f32>,
 }
 
 /// Draw the statistics in the top-left corner of the view.
@@ -247,6 +379,9 @@ pub fn hud(ui: &mut egui::Ui, info: &HudInfo) {
                     );
                 }
             }
+            if let Some(zoom) = info.zoom {
+                ui.label(mono(format!("zoom x{zoom:.1}   0: fit the tank")));
+            }
             ui.label(
                 RichText::new("H or ? for help")
                     .small()
@@ -268,9 +403,9 @@ pub fn help_window(ctx: &egui::Context, open: &mut bool) {
                 .spacing([16.0, 4.0])
                 .striped(true)
                 .show(ui, |ui| {
-                    for (keys, what) in KEY_HELP {
-                        ui.label(RichText::new(*keys).monospace().strong());
-                        ui.label(*what);
+                    for (keys, what) in key_help() {
+                        ui.label(RichText::new(keys).monospace().strong());
+                        ui.label(what);
                         ui.end_row();
                     }
                 });
@@ -294,6 +429,73 @@ mod tests {
         assert!((600..=602).contains(&h.len()), "{}", h.len());
         h.push(Sample::default());
         assert_eq!(h.len(), 1);
+    }
+
+    #[test]
+    fn value_range_fits_the_data_with_a_margin_and_is_never_degenerate() {
+        // Density errors of a few thousandths of a percent: the range fits them, not 0–1.
+        let (lo, hi) = value_range([0.002, 0.003, 0.0025].into_iter());
+        assert_eq!(lo, 0.0);
+        assert!(hi > 0.003 && hi < 0.0035, "{hi}");
+        // Nothing yet, all zero, or one constant value: a usable range.
+        assert_eq!(value_range(std::iter::empty()), (0.0, 1.0));
+        assert_eq!(value_range([0.0, 0.0].into_iter()), (0.0, 1.0));
+        let (lo, hi) = value_range([5.0, 5.0].into_iter());
+        assert!(lo <= 0.0 && hi > 5.0, "{lo} {hi}");
+        // Negative values get a margin below too; NaN and infinities are left out.
+        let (lo, hi) = value_range([-2.0, 3.0, f64::NAN, f64::INFINITY].into_iter());
+        assert!(lo < -2.0 && hi > 3.0 && hi < 4.0, "{lo} {hi}");
+    }
+
+    #[test]
+    fn ticks_are_nice_fit_the_axis_and_are_labelled_with_their_step() {
+        assert_eq!(nice_step(0.0013), 0.002);
+        assert_eq!(nice_step(3.0), 5.0);
+        assert_eq!(nice_step(7.0), 10.0);
+        assert_eq!(nice_step(0.1), 0.1);
+        // 0–0.0033 % on a 60-point axis with labels at least 20 points apart: 0, 0.001, ...
+        let t = ticks(0.0, 0.0033, 60.0, 20.0);
+        let values: Vec<String> = t
+            .iter()
+            .map(|m| format_tick(m.value, m.step_size))
+            .collect();
+        assert_eq!(values, ["0", "0.002"]);
+        let t = ticks(0.0, 0.0033, 120.0, 20.0);
+        let values: Vec<String> = t
+            .iter()
+            .map(|m| format_tick(m.value, m.step_size))
+            .collect();
+        assert_eq!(values, ["0", "0.001", "0.002", "0.003"]);
+        // A 10 s window from t = 3.7 s on a 300-point axis, labels 48 points apart: every 2 s.
+        let t = ticks(3.7, 13.7, 300.0, X_TICK_POINTS as f64);
+        let values: Vec<f64> = t.iter().map(|m| m.value).collect();
+        assert_eq!(values, [4.0, 6.0, 8.0, 10.0, 12.0]);
+        assert!(ticks(1.0, 1.0, 100.0, 20.0).is_empty());
+        assert!(ticks(0.0, 1.0, 0.0, 20.0).is_empty());
+        // Labels: no spurious digits, thousands, tiny steps, an exact zero.
+        assert_eq!(format_tick(0.25, 0.05), "0.25");
+        assert_eq!(format_tick(40.0, 20.0), "40");
+        assert_eq!(format_tick(12000.0, 2000.0), "12k");
+        assert_eq!(format_tick(2500.0, 500.0), "2500");
+        assert_eq!(format_tick(24282.0, 500.0), "24.3k");
+        assert_eq!(format_tick(0.0015, 0.0005), "0.0015");
+        assert_eq!(format_tick(3e-5, 1e-5), "3e-5");
+        assert_eq!(format_tick(-1e-18, 0.001), "0");
+    }
+
+    #[test]
+    fn the_time_axis_spans_the_window_from_the_oldest_sample() {
+        let mut h = History::default();
+        assert_eq!(h.time_range(), (0.0, PLOT_WINDOW));
+        for k in 0..=600 {
+            h.push(Sample {
+                time: 5.0 + k as f64 / 30.0,
+                ..Default::default()
+            });
+        }
+        let (t0, t1) = h.time_range();
+        assert!((t1 - 25.0).abs() < 0.05, "{t0}..{t1}");
+        assert!((t1 - t0 - PLOT_WINDOW).abs() < 1e-9);
     }
 
     #[test]

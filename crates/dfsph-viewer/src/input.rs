@@ -9,15 +9,15 @@ use dfsph::scene::BUILTIN_SCENES;
 use dfsph::{Action, Vec2};
 use eframe::egui::{self, Key, PointerButton};
 
-/// Every key and mouse binding, as shown in the help overlay: (keys, what they do).
+/// Every key and mouse binding, as shown in the help overlay: (keys, what they do). The
+/// built-in scenes' entry is added by [`key_help`], from their count.
 pub const KEY_HELP: &[(&str, &str)] = &[
     ("A / D, ← / →", "shake the tank left / right while held"),
     ("Q / E", "tilt gravity left / right by 5° (up to ±45°)"),
     ("left drag", "pull water towards the cursor"),
     ("right drag", "push water away from the cursor"),
-    ("mouse wheel", "change the tool radius (the circle)"),
     (
-        "F or middle button",
+        "F (held)",
         "pour water at the cursor (within the particle budget)",
     ),
     ("Shift + left drag", "draw a wall (added on release)"),
@@ -25,14 +25,17 @@ pub const KEY_HELP: &[(&str, &str)] = &[
         "X + left click/drag",
         "erase water and drawn walls under the cursor",
     ),
-    ("Space", "pause / resume"),
+    ("Shift + wheel", "change the tool radius (the circle)"),
+    ("wheel, pinch", "zoom about the cursor"),
+    ("middle drag, Space + drag", "pan the view"),
+    ("0", "fit the whole tank in the view again"),
+    ("Space (tap)", "pause / resume"),
     ("N", "single step (pauses)"),
     (
         "R",
         "reset to the scene as loaded: water, walls, gravity, radius, settings \
          (drawn walls go)",
     ),
-    ("1 – 9", "load a built-in scene"),
     ("C", "cycle the colouring (speed, density, pressure)"),
     ("F12", "save a PNG screenshot to the current directory"),
     (
@@ -42,6 +45,30 @@ pub const KEY_HELP: &[(&str, &str)] = &[
     ("Ctrl+O or drop a .json", "open a scene file"),
     ("H or ?", "show / hide this help"),
 ];
+
+/// The number keys that load the built-in scenes, for `count` scenes: "1 – 5" (keys 1–9
+/// only: there is no tenth number key); `None` without scenes.
+pub fn scene_keys(count: usize) -> Option<String> {
+    match count.min(9) {
+        0 => None,
+        1 => Some("1".into()),
+        n => Some(format!("1 – {n}")),
+    }
+}
+
+/// The help overlay's lines: [`KEY_HELP`] with the built-in scenes' keys after `R`.
+pub fn key_help() -> Vec<(String, &'static str)> {
+    let mut lines: Vec<(String, &'static str)> =
+        KEY_HELP.iter().map(|(k, w)| (k.to_string(), *w)).collect();
+    if let Some(keys) = scene_keys(BUILTIN_SCENES.len()) {
+        let at = lines
+            .iter()
+            .position(|(k, _)| k == "R")
+            .map_or(lines.len(), |i| i + 1);
+        lines.insert(at, (keys, "load a built-in scene"));
+    }
+    lines
+}
 
 /// Gravity tilt per press of `q` / `e`, degrees.
 pub const TILT_STEP_DEG: f32 = 5.0;
@@ -75,6 +102,13 @@ pub enum Command {
     SaveScene,
     /// Show the dialog that opens a scene file.
     OpenScene,
+    /// Multiply the view's zoom by `factor`, keeping the world point `about` (m) where it is
+    /// on the screen.
+    ZoomView { factor: f32, about: Vec2 },
+    /// Move the view with the pointer by this many screen points.
+    PanView { delta: egui::Vec2 },
+    /// Fit the whole world in the view again.
+    ResetView,
 }
 
 /// Where the pointer is, as far as the simulation view is concerned.
@@ -97,12 +131,14 @@ pub enum Tool {
     Pull,
     /// Pushing water away (right drag).
     Push,
-    /// Pouring water (f / middle button).
+    /// Pouring water (f held).
     Pour,
     /// Erasing (x + click).
     Erase,
     /// Drawing a wall (shift + drag).
     Wall,
+    /// Moving the view (middle drag, space + drag).
+    Pan,
 }
 
 /// Turns egui input into commands, remembering what is held between frames.
@@ -127,6 +163,10 @@ pub struct InputMapper {
     /// The wall being drawn.
     wall: Option<Vec<Vec2>>,
     tool: Tool,
+    /// Space is held: `Some(true)` once it was used to pan (then its release does not pause).
+    space_held: Option<bool>,
+    /// Where the pointer was when the view last moved with it, screen points (while panning).
+    pan_from: Option<egui::Pos2>,
 }
 
 impl Default for InputMapper {
@@ -142,6 +182,8 @@ impl Default for InputMapper {
             pointer_active: false,
             wall: None,
             tool: Tool::Idle,
+            space_held: None,
+            pan_from: None,
         }
     }
 }
@@ -215,6 +257,9 @@ impl InputMapper {
         let mut out = Vec::new();
         if view.keyboard {
             self.keys(input, &mut out);
+        } else {
+            // A space released while a text field had the keys must not pause later.
+            self.space_held = None;
         }
         let shake = if view.keyboard {
             let held = |a: Key, b: Key| input.key_down(a) || input.key_down(b);
@@ -238,8 +283,16 @@ impl InputMapper {
                 out.push(Command::Sim(action));
             }
         }
-        if input.key_pressed(Key::Space) {
+        // Space pauses when tapped, and pans while held with a drag: it acts on release,
+        // unless it panned (so holding it to pan does not pause, nor does key repeat toggle).
+        if input.key_pressed(Key::Space) && self.space_held.is_none() {
+            self.space_held = Some(false);
+        }
+        if input.key_released(Key::Space) && self.space_held.take() == Some(false) {
             out.push(Command::TogglePause);
+        }
+        if input.key_pressed(Key::Num0) {
+            out.push(Command::ResetView);
         }
         for _ in 0..input.num_presses(Key::N) {
             out.push(Command::Step);
@@ -263,7 +316,8 @@ impl InputMapper {
                 out.push(Command::LoadScene(i));
             }
         }
-        if input.key_pressed(Key::C) {
+        // Two presses within one slow frame are two steps.
+        for _ in 0..input.num_presses(Key::C) {
             out.push(Command::CycleColoring);
         }
         if input.key_pressed(Key::F12) {
@@ -303,17 +357,60 @@ impl InputMapper {
         }
 
         let Some(at) = view.pointer else {
+            self.pan_from = None;
             self.release(out);
             return;
         };
 
-        let scroll = input.raw_scroll_delta.y;
-        if scroll != 0.0 {
-            // About 10 % per wheel notch (egui reports 50 points per line).
-            let factor = 1.1f32.powf(scroll / 50.0);
-            self.tool_radius =
-                (self.tool_radius * factor).clamp(self.radius_limits.0, self.radius_limits.1);
+        // The wheel zooms about the cursor, as in map and drawing programs (the first thing a
+        // new user tries), and so do pinching and Ctrl + wheel (egui's zoom gesture); with
+        // Shift (the modifier of the tools: Shift + drag draws) it sizes the tool instead.
+        let m = input.modifiers;
+        // About 10 % per wheel notch (egui reports 40-50 points per line). Shift turns the
+        // wheel into a horizontal scroll in egui: take both directions.
+        let notches = (input.raw_scroll_delta.x + input.raw_scroll_delta.y) / 50.0;
+        if m.shift {
+            if notches != 0.0 {
+                let factor = 1.1f32.powf(notches);
+                self.tool_radius =
+                    (self.tool_radius * factor).clamp(self.radius_limits.0, self.radius_limits.1);
+            }
+        } else {
+            let mut zoom = input.zoom_delta();
+            if !(m.ctrl || m.command || m.alt) {
+                zoom *= 1.1f32.powf(input.raw_scroll_delta.y / 50.0);
+            }
+            if zoom != 1.0 && zoom.is_finite() {
+                out.push(Command::ZoomView {
+                    factor: zoom,
+                    about: at,
+                });
+            }
         }
+
+        // Panning: middle drag, or left drag with Space held. It takes the pointer from the
+        // tools (a wall being drawn keeps it).
+        let space_pan = self.space_held.is_some() && primary;
+        if self.wall.is_none() && (middle || space_pan) {
+            self.tool = Tool::Pan;
+            if space_pan {
+                self.space_held = Some(true);
+            }
+            // From where the button went down, not from last frame's pointer: on a slow
+            // frame the move to the press and the press arrive together, and that move is
+            // not part of the drag.
+            let from = self.pan_from.or_else(|| p.press_origin());
+            if let (Some(from), Some(now)) = (from, p.latest_pos()) {
+                let delta = now - from;
+                if delta != egui::Vec2::ZERO {
+                    out.push(Command::PanView { delta });
+                }
+                self.pan_from = Some(now);
+            }
+            self.release(out);
+            return;
+        }
+        self.pan_from = None;
 
         if let Some(wall) = &mut self.wall {
             self.tool = Tool::Wall;
@@ -341,7 +438,7 @@ impl InputMapper {
             }));
             return;
         }
-        if middle || keys(Key::F) {
+        if keys(Key::F) {
             self.tool = Tool::Pour;
             out.push(Command::Sim(Action::Emit {
                 at,
@@ -504,6 +601,7 @@ mod tests {
         let mut h = Harness::new();
         let cases = [
             (Key::Space, Command::TogglePause),
+            (Key::Num0, Command::ResetView),
             (Key::N, Command::Step),
             (Key::R, Command::Reset),
             (Key::Num1, Command::LoadScene(0)),
@@ -592,39 +690,114 @@ mod tests {
         assert_eq!(h.frame(vec![]), vec![Command::Sim(Action::ReleasePointer)]);
     }
 
-    #[test]
-    fn wheel_changes_the_tool_radius() {
-        let mut h = Harness::new();
-        let r0 = h.mapper.tool_radius;
-        h.frame(vec![
-            moved(),
-            Event::MouseWheel {
-                unit: egui::MouseWheelUnit::Line,
-                delta: egui::vec2(0.0, 1.0),
-                modifiers: Modifiers::NONE,
-            },
-        ]);
-        assert!(h.mapper.tool_radius > r0, "{} > {r0}", h.mapper.tool_radius);
+    fn wheel(modifiers: Modifiers) -> Event {
+        Event::MouseWheel {
+            unit: egui::MouseWheelUnit::Line,
+            delta: egui::vec2(0.0, 1.0),
+            modifiers,
+        }
+    }
+
+    fn moved_to(x: f32, y: f32) -> Event {
+        Event::PointerMoved(Pos2::new(x, y))
     }
 
     #[test]
-    fn f_and_middle_button_pour_at_the_cursor() {
+    fn wheel_zooms_about_the_cursor_and_shift_wheel_sizes_the_tool() {
         let mut h = Harness::new();
-        let out = h.frame(vec![key(Key::F, true)]);
+        let r0 = h.mapper.tool_radius;
+        let out = h.frame(vec![moved(), wheel(Modifiers::NONE)]);
+        let [Command::ZoomView { factor, about }] = out.as_slice() else {
+            panic!("expected one ZoomView, got {out:?}");
+        };
+        assert!(*factor > 1.05 && *factor < 1.5, "one notch in: {factor}");
+        assert_eq!(*about, h.pointer.unwrap());
+        assert_eq!(h.mapper.tool_radius, r0);
+        // Shift + wheel: the tool grows, the view stays.
+        let out = h.frame_with(vec![moved(), wheel(Modifiers::SHIFT)], Modifiers::SHIFT);
+        assert_eq!(out, vec![]);
+        assert!(h.mapper.tool_radius > r0, "{} > {r0}", h.mapper.tool_radius);
+        // Pinch (egui's zoom event) zooms too.
+        let out = h.frame(vec![moved(), Event::Zoom(1.5)]);
         assert!(
-            matches!(out.as_slice(), [Command::Sim(Action::Emit { at, velocity, .. })]
-                if *at == h.pointer.unwrap() && velocity.y < 0.0),
+            matches!(out.as_slice(), [Command::ZoomView { factor, .. }] if (*factor - 1.5).abs() < 1e-6),
             "{out:?}"
         );
-        // Held: keeps pouring every frame.
-        assert_eq!(h.frame(vec![]).len(), 1);
-        h.frame(vec![key(Key::F, false)]);
+        // Off the view the wheel does nothing here (the panel scrolls).
+        h.pointer = None;
+        assert_eq!(h.frame(vec![moved(), wheel(Modifiers::NONE)]), vec![]);
+    }
+
+    #[test]
+    fn middle_drag_pans_and_does_not_pour() {
+        let mut h = Harness::new();
+        h.frame(vec![moved_to(100.0, 100.0)]);
         let out = h.frame(vec![button(PointerButton::Middle, true, Modifiers::NONE)]);
-        assert!(matches!(
-            out.as_slice(),
-            [Command::Sim(Action::Emit { .. })]
-        ));
-        assert_eq!(h.mapper.tool(), Tool::Pour);
+        assert_eq!(out, vec![]);
+        assert_eq!(h.mapper.tool(), Tool::Pan);
+        let out = h.frame(vec![moved_to(110.0, 95.0)]);
+        assert_eq!(
+            out,
+            vec![Command::PanView {
+                delta: egui::vec2(10.0, -5.0)
+            }]
+        );
+        h.frame(vec![button(PointerButton::Middle, false, Modifiers::NONE)]);
+        assert_eq!(h.mapper.tool(), Tool::Idle);
+        // A slow frame: the move to (300, 300) and the press there arrive together; the
+        // view moves only with what comes after the press.
+        let press_at = |pos: Pos2, pressed: bool| Event::PointerButton {
+            pos,
+            button: PointerButton::Middle,
+            pressed,
+            modifiers: Modifiers::NONE,
+        };
+        let out = h.frame(vec![
+            moved_to(300.0, 300.0),
+            press_at(Pos2::new(300.0, 300.0), true),
+        ]);
+        assert_eq!(out, vec![]);
+        let out = h.frame(vec![moved_to(302.0, 303.0)]);
+        assert_eq!(
+            out,
+            vec![Command::PanView {
+                delta: egui::vec2(2.0, 3.0)
+            }]
+        );
+    }
+
+    #[test]
+    fn space_tap_pauses_and_space_drag_pans_without_pausing_or_pulling() {
+        let mut h = Harness::new();
+        // A tap: press and release (in one frame or two) toggles the pause once.
+        assert_eq!(
+            h.frame(vec![key(Key::Space, true), key(Key::Space, false)]),
+            vec![Command::TogglePause]
+        );
+        assert_eq!(h.frame(vec![key(Key::Space, true)]), vec![]);
+        assert_eq!(
+            h.frame(vec![key(Key::Space, false)]),
+            vec![Command::TogglePause]
+        );
+        // Held with a left drag: pans; no pull, and no pause on release.
+        h.frame(vec![moved_to(100.0, 100.0), key(Key::Space, true)]);
+        let out = h.frame(vec![button(PointerButton::Primary, true, Modifiers::NONE)]);
+        assert_eq!(out, vec![]);
+        let out = h.frame(vec![moved_to(90.0, 120.0)]);
+        assert_eq!(
+            out,
+            vec![Command::PanView {
+                delta: egui::vec2(-10.0, 20.0)
+            }]
+        );
+        h.frame(vec![button(PointerButton::Primary, false, Modifiers::NONE)]);
+        assert_eq!(h.frame(vec![key(Key::Space, false)]), vec![]);
+        // Afterwards a left drag pulls again.
+        let out = h.frame(vec![button(PointerButton::Primary, true, Modifiers::NONE)]);
+        assert!(
+            matches!(out.as_slice(), [Command::Sim(Action::Push { strength, .. })] if *strength < 0.0),
+            "{out:?}"
+        );
     }
 
     #[test]
@@ -673,13 +846,17 @@ mod tests {
 
     #[test]
     fn every_binding_is_in_the_help() {
-        let text: String = KEY_HELP.iter().map(|(k, _)| *k).collect();
+        let text: String = key_help().iter().map(|(k, _)| k.as_str()).collect();
         for needle in [
             "A / D",
             "Q / E",
             "left drag",
             "right drag",
-            "wheel",
+            "Shift + wheel",
+            "wheel, pinch",
+            "middle drag",
+            "Space + drag",
+            "0",
             "F",
             "Shift",
             "X",
@@ -694,6 +871,35 @@ mod tests {
             "Ctrl+O",
         ] {
             assert!(text.contains(needle), "{needle}");
+        }
+    }
+
+    #[test]
+    fn the_help_names_as_many_scene_keys_as_there_are_built_in_scenes() {
+        assert_eq!(scene_keys(0), None);
+        assert_eq!(scene_keys(1).as_deref(), Some("1"));
+        assert_eq!(scene_keys(5).as_deref(), Some("1 – 5"));
+        assert_eq!(scene_keys(14).as_deref(), Some("1 – 9"));
+        let help = key_help();
+        let want = scene_keys(BUILTIN_SCENES.len()).unwrap();
+        let line = help.iter().find(|(_, w)| w.contains("built-in scene"));
+        assert_eq!(line.map(|(k, _)| k.as_str()), Some(want.as_str()));
+        // The key after the last scene does nothing.
+        if BUILTIN_SCENES.len() < 9 {
+            let mut h = Harness::new();
+            let keys = [
+                Key::Num1,
+                Key::Num2,
+                Key::Num3,
+                Key::Num4,
+                Key::Num5,
+                Key::Num6,
+                Key::Num7,
+                Key::Num8,
+                Key::Num9,
+            ];
+            let next = keys[BUILTIN_SCENES.len()];
+            assert_eq!(h.frame(vec![key(next, true)]), vec![]);
         }
     }
 }

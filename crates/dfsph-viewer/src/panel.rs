@@ -8,7 +8,7 @@ use dfsph::{Action, Simulation};
 use eframe::egui::{self, Slider};
 
 use crate::input::{Command, InputMapper, MAX_TILT_DEG};
-use crate::render::Coloring;
+use crate::render::{ColorScale, Coloring};
 
 /// What the side panel reads and edits.
 pub struct PanelState<'a> {
@@ -17,6 +17,10 @@ pub struct PanelState<'a> {
     /// Simulated seconds per wall second asked for.
     pub time_scale: &'a mut f64,
     pub coloring: &'a mut Coloring,
+    /// The colour scale of each colouring, in [`Coloring::ALL`] order.
+    pub scales: &'a mut [ColorScale; 3],
+    /// The view shows the whole tank (no zoom or pan).
+    pub view_fitted: bool,
     /// The particle radius slider's value, m (applied when the slider is let go).
     pub radius_edit: &'a mut f64,
     /// The radius slider's range, m ([`crate::scene_file::radius_range`]); `None` turns it
@@ -61,6 +65,13 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
             }
             if ui.button("Help").clicked() {
                 out.push(Command::ToggleHelp);
+            }
+            if ui
+                .add_enabled(!st.view_fitted, egui::Button::new("Fit view"))
+                .on_hover_text("Show the whole tank again (key 0); wheel zooms, middle drag pans")
+                .clicked()
+            {
+                out.push(Command::ResetView);
             }
         });
         ui.horizontal(|ui| {
@@ -220,8 +231,38 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
                     ui.selectable_value(st.coloring, c, c.label());
                 }
             });
+        let i = Coloring::ALL
+            .iter()
+            .position(|c| c == st.coloring)
+            .unwrap_or(0);
+        color_scale(ui, &mut st.scales[i]);
     });
     out
+}
+
+/// The colour scale's controls: auto or fixed, and the fixed range's ends.
+fn color_scale(ui: &mut egui::Ui, scale: &mut ColorScale) {
+    let mut auto = scale.auto;
+    ui.checkbox(&mut auto, "auto range")
+        .on_hover_text("The colour range follows the data (1st to 99th percentile, smoothed); untick to fix it where it is and edit it");
+    if auto != scale.auto {
+        scale.set_auto(auto);
+    }
+    let (mut lo, mut hi) = scale.range;
+    let speed = ((hi - lo).abs() * 0.005).max(1e-4);
+    ui.horizontal(|ui| {
+        ui.add_enabled_ui(!scale.auto, |ui| {
+            ui.label("range");
+            ui.add(egui::DragValue::new(&mut lo).speed(speed).max_decimals(4));
+            ui.label("to");
+            ui.add(egui::DragValue::new(&mut hi).speed(speed).max_decimals(4));
+        });
+    });
+    if !scale.auto && (lo, hi) != scale.range {
+        // Keep the range the right way round and not empty.
+        let hi = if hi > lo { hi } else { lo + speed.max(1e-3) };
+        scale.range = (lo, hi);
+    }
 }
 
 /// Scientific notation for values spanning decades (viscosities).

@@ -25,10 +25,13 @@ impl ViewTransform {
         let scale = (screen.width() / size.x)
             .min(screen.height() / size.y)
             .max(1e-6);
-        let centre = 0.5 * (world_min + world_max);
-        let c = screen.center();
+        Self::centred(0.5 * (world_min + world_max), scale, screen.center())
+    }
+
+    /// `centre` (m) at the screen point `at`, `scale` screen points per metre.
+    pub fn centred(centre: Vec2, scale: f32, at: Pos2) -> Self {
         Self {
-            origin: pos2(c.x - centre.x * scale, c.y + centre.y * scale),
+            origin: pos2(at.x - centre.x * scale, at.y + centre.y * scale),
             scale,
         }
     }
@@ -117,8 +120,9 @@ impl Coloring {
         }
     }
 
-    /// The value range the colour map spans for this simulation.
-    pub fn range(self, sim: &Simulation) -> (f32, f32) {
+    /// A fixed value range for this simulation's scene, in the colouring's unit: what a
+    /// fixed colour scale starts from before the user has seen any auto range.
+    pub fn scene_range(self, sim: &Simulation) -> (f32, f32) {
         let g = sim.gravity().length().max(1.0);
         let scene = sim.scene();
         let depth = scene
@@ -131,7 +135,7 @@ impl Coloring {
             // The speed a column of this depth reaches falling freely over its own height,
             // rounded up.
             Coloring::Speed => (0.0, (g * depth).sqrt().ceil()),
-            Coloring::Density => (-3.0, 3.0),
+            Coloring::Density => (-1.0, 1.0),
             Coloring::Pressure => (0.0, sim.rest_density() * g * depth),
         }
     }
@@ -148,28 +152,148 @@ impl Coloring {
         }
     }
 
-    /// Fill `out` with one colour per fluid particle, in [`Simulation::positions`] order.
-    pub fn colors(self, sim: &Simulation, out: &mut Vec<Color32>) {
-        let (lo, hi) = self.range(sim);
-        let inv = 1.0 / (hi - lo).max(1e-9);
-        let map = |v: f32| self.color((v - lo) * inv);
+    /// Whether the colour scale follows the data when the viewer starts.
+    ///
+    /// Speed and pressure: auto. Their scale changes with what the user does (pouring deepens
+    /// the water, shaking and pushing speed it up), so any fixed scale saturates or washes
+    /// out sooner or later. Density error: fixed (±1 %). It measures the solver's accuracy,
+    /// whose meaning is absolute (tolerances are a few hundredths of a percent): a fixed scale
+    /// lets a user compare settings, and stays white where the solve converges, whereas an
+    /// auto scale would stretch noise of 0.01 % to full colour and make a converged solve look
+    /// alarming.
+    pub fn auto_by_default(self) -> bool {
+        !matches!(self, Coloring::Density)
+    }
+
+    /// The smallest span an auto range may have, in the colouring's unit (water at rest must
+    /// not blow its noise up to full colour).
+    fn min_span(self) -> f32 {
+        match self {
+            Coloring::Speed => 0.05,
+            Coloring::Density => 0.1,
+            Coloring::Pressure => 10.0,
+        }
+    }
+
+    /// Fill `out` with the field this colouring shows, one value per fluid particle in
+    /// [`Simulation::positions`] order, in the colouring's unit.
+    pub fn values(self, sim: &Simulation, out: &mut Vec<f32>) {
         out.clear();
         match self {
-            Coloring::Speed => out.extend(sim.velocities().iter().map(|v| map(v.length()))),
-            Coloring::Density => {
-                out.extend(sim.density_ratios().iter().map(|r| map(100.0 * (r - 1.0))))
-            }
+            Coloring::Speed => out.extend(sim.velocities().iter().map(|v| v.length())),
+            Coloring::Density => out.extend(sim.density_ratios().iter().map(|r| 100.0 * (r - 1.0))),
             Coloring::Pressure => {
                 let rho0 = sim.rest_density();
                 out.extend(
                     sim.interpolated_pressures_over_rho0()
                         .iter()
-                        .map(|p| map(p * rho0)),
+                        .map(|p| p * rho0),
                 )
             }
         }
         // Before the first step the per-particle fields may still be empty.
-        out.resize(sim.positions().len(), self.color(0.0));
+        out.resize(sim.positions().len(), 0.0);
+    }
+
+    /// The range an auto scale aims at for these values: robust percentiles (the 1st and the
+    /// 99th, so that a few splashing or freshly poured particles do not set the scale),
+    /// widened to [`Self::min_span`]. Speed and pressure start at 0 (still water is the
+    /// colour map's start); density error is symmetric about 0 (white = rest density), its
+    /// half-width set by compression alone, since the free surface, where the kernel is
+    /// cut off, always reads expanded by 10 % and more and would swamp the scale. `None`
+    /// without finite values.
+    pub fn auto_target(self, values: &[f32], scratch: &mut Vec<f32>) -> Option<(f32, f32)> {
+        scratch.clear();
+        scratch.extend(values.iter().copied().filter(|v| v.is_finite()));
+        if scratch.is_empty() {
+            return None;
+        }
+        let n = scratch.len();
+        let mut percentile = |q: f64| {
+            let k = ((q * (n - 1) as f64).round() as usize).min(n - 1);
+            *scratch.select_nth_unstable_by(k, f32::total_cmp).1
+        };
+        let (lo, hi) = (percentile(0.01), percentile(0.99));
+        let span = self.min_span();
+        Some(match self {
+            Coloring::Speed => (0.0, hi.max(span)),
+            Coloring::Pressure => (lo.min(0.0), hi.max(lo.min(0.0) + span)),
+            Coloring::Density => {
+                let half = hi.max(0.5 * span);
+                (-half, half)
+            }
+        })
+    }
+
+    /// Fill `out` with one colour per value, `range` mapping to the colour map's ends.
+    pub fn colors(self, values: &[f32], range: (f32, f32), out: &mut Vec<Color32>) {
+        let (lo, hi) = range;
+        let inv = 1.0 / (hi - lo).max(1e-9);
+        out.clear();
+        out.extend(values.iter().map(|&v| self.color((v - lo) * inv)));
+    }
+}
+
+/// The colour scale of one colouring: auto (following the data, smoothed) or fixed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ColorScale {
+    /// The range follows the data.
+    pub auto: bool,
+    /// The range in use, in the colouring's unit; the user's while fixed.
+    pub range: (f32, f32),
+    /// Whether `range` holds anything yet (an auto scale starts at its first target).
+    started: bool,
+}
+
+/// Seconds an auto range takes to grow by 63 % of the way to a wider target: quick, so a
+/// splash is not drawn saturated for long.
+pub const AUTO_GROW_SECONDS: f32 = 0.15;
+/// Seconds an auto range takes to shrink by 63 % of the way to a narrower target: slow, so
+/// the colours do not flicker as the fastest particles come and go.
+pub const AUTO_SHRINK_SECONDS: f32 = 1.5;
+
+impl ColorScale {
+    /// A scale, auto or fixed at `range`.
+    pub fn new(auto: bool, range: (f32, f32)) -> Self {
+        Self {
+            auto,
+            range,
+            started: !auto,
+        }
+    }
+
+    /// Move an auto range towards `target` over `seconds` of wall time (a fixed one stays).
+    pub fn follow(&mut self, target: Option<(f32, f32)>, seconds: f32) {
+        let Some((lo, hi)) = target.filter(|_| self.auto) else {
+            return;
+        };
+        if !self.started {
+            self.range = (lo, hi);
+            self.started = true;
+            return;
+        }
+        let step = |now: f32, to: f32, grows: bool| {
+            let tau = if grows {
+                AUTO_GROW_SECONDS
+            } else {
+                AUTO_SHRINK_SECONDS
+            };
+            now + (1.0 - (-seconds.max(0.0) / tau).exp()) * (to - now)
+        };
+        let (a, b) = self.range;
+        self.range = (step(a, lo, lo < a), step(b, hi, hi > b));
+    }
+
+    /// Fix the range where it is now (the user unticked auto) or let it follow again.
+    pub fn set_auto(&mut self, auto: bool) {
+        self.auto = auto;
+    }
+
+    /// Forget the data seen (another scene): an auto range starts over at its next target.
+    pub fn restart(&mut self) {
+        if self.auto {
+            self.started = false;
+        }
     }
 }
 
@@ -248,52 +372,108 @@ pub fn particle_mesh(
     mesh
 }
 
-/// Draw the colour legend (a vertical bar with its range) in the top-right corner of `rect`.
-pub fn legend(painter: &egui::Painter, rect: Rect, coloring: Coloring, range: (f32, f32)) {
-    let bar = Rect::from_min_size(rect.right_top() + vec2(-90.0, 30.0), vec2(16.0, 160.0));
+/// Draw the colour legend into `rect` (see [`crate::view::layout`]): the colour bar with
+/// its range's ends and middle labelled, the colouring's name and unit, and whether the
+/// range follows the data. Upright beside the tank, or lying under it when `horizontal`.
+pub fn legend(
+    painter: &egui::Painter,
+    rect: Rect,
+    horizontal: bool,
+    coloring: Coloring,
+    scale: &ColorScale,
+) {
+    let (lo, hi) = scale.range;
+    let font = egui::FontId::proportional(12.0);
+    let small = egui::FontId::proportional(11.0);
+    let text = Color32::from_gray(230);
+    let dim = Color32::from_gray(160);
+    // Labels with two or three significant digits: "6.8", "0.35", "1200", "12k".
+    let step = crate::hud::nice_step(((hi - lo).abs() as f64 / 60.0).max(1e-9));
+    let fmt = |v: f32| crate::hud::format_tick(v as f64, step);
+    let mode = if scale.auto {
+        "auto range"
+    } else {
+        "fixed range"
+    };
+    let bar = if horizontal {
+        painter.text(
+            rect.left_top(),
+            egui::Align2::LEFT_TOP,
+            format!("{}  ·  {mode}", coloring.label()),
+            font.clone(),
+            text,
+        );
+        Rect::from_min_size(rect.left_top() + vec2(0.0, 16.0), vec2(rect.width(), 12.0))
+    } else {
+        painter.text(
+            rect.right_top(),
+            egui::Align2::RIGHT_TOP,
+            coloring.label(),
+            font.clone(),
+            text,
+        );
+        painter.text(
+            rect.right_top() + vec2(0.0, 15.0),
+            egui::Align2::RIGHT_TOP,
+            mode,
+            small.clone(),
+            dim,
+        );
+        Rect::from_min_size(
+            rect.left_top() + vec2(rect.width() - 70.0, 36.0),
+            vec2(16.0, rect.height() - 44.0),
+        )
+    };
     let mut mesh = Mesh::default();
-    const N: usize = 32;
+    const N: usize = 48;
     for k in 0..N {
         let t0 = k as f32 / N as f32;
         let t1 = (k + 1) as f32 / N as f32;
-        let r = Rect::from_x_y_ranges(
-            bar.x_range(),
-            (bar.bottom() - t1 * bar.height())..=(bar.bottom() - t0 * bar.height()),
-        );
+        let r = if horizontal {
+            Rect::from_x_y_ranges(
+                (bar.left() + t0 * bar.width())..=(bar.left() + t1 * bar.width()),
+                bar.y_range(),
+            )
+        } else {
+            Rect::from_x_y_ranges(
+                bar.x_range(),
+                (bar.bottom() - t1 * bar.height())..=(bar.bottom() - t0 * bar.height()),
+            )
+        };
         mesh.add_colored_rect(r, coloring.color(0.5 * (t0 + t1)));
     }
     painter.add(Shape::mesh(mesh));
     painter.rect_stroke(bar, 0.0, Stroke::new(1.0, Color32::GRAY));
-    let font = egui::FontId::proportional(12.0);
-    let text = Color32::from_gray(230);
-    let fmt = |v: f32| {
-        if v.abs() >= 10.0 || v == v.round() {
-            format!("{v:.0}")
+    for (t, v) in [(0.0, lo), (0.5, 0.5 * (lo + hi)), (1.0, hi)] {
+        if horizontal {
+            let x = bar.left() + t * bar.width();
+            let align = [
+                egui::Align2::LEFT_TOP,
+                egui::Align2::CENTER_TOP,
+                egui::Align2::RIGHT_TOP,
+            ][(2.0 * t) as usize];
+            painter.text(
+                pos2(x, bar.bottom() + 2.0),
+                align,
+                fmt(v),
+                small.clone(),
+                text,
+            );
         } else {
-            format!("{v:.1}")
+            let y = bar.bottom() - t * bar.height();
+            painter.line_segment(
+                [pos2(bar.right(), y), pos2(bar.right() + 4.0, y)],
+                Stroke::new(1.0, Color32::GRAY),
+            );
+            painter.text(
+                pos2(bar.right() + 6.0, y),
+                egui::Align2::LEFT_CENTER,
+                fmt(v),
+                small.clone(),
+                text,
+            );
         }
-    };
-    painter.text(
-        bar.right_top() + vec2(4.0, 0.0),
-        egui::Align2::LEFT_TOP,
-        fmt(range.1),
-        font.clone(),
-        text,
-    );
-    painter.text(
-        bar.right_bottom() + vec2(4.0, 0.0),
-        egui::Align2::LEFT_BOTTOM,
-        fmt(range.0),
-        font.clone(),
-        text,
-    );
-    painter.text(
-        bar.center_top() - vec2(0.0, 6.0),
-        egui::Align2::CENTER_BOTTOM,
-        coloring.label(),
-        font,
-        text,
-    );
+    }
 }
 
 #[cfg(test)]
@@ -341,8 +521,10 @@ mod tests {
         let (lo, hi) = world_bounds(&sim);
         let screen = Rect::from_min_size(Pos2::ZERO, vec2(640.0, 480.0));
         let t = ViewTransform::fit(lo, hi, screen);
+        let mut values = Vec::new();
+        Coloring::Speed.values(&sim, &mut values);
         let mut colors = Vec::new();
-        Coloring::Speed.colors(&sim, &mut colors);
+        Coloring::Speed.colors(&values, Coloring::Speed.scene_range(&sim), &mut colors);
         assert_eq!(colors.len(), sim.positions().len());
         let mesh = particle_mesh(&sim, &t, egui::TextureId::default(), &colors);
         let n = sim.positions().len() + sim.boundary_positions().len();
@@ -353,5 +535,72 @@ mod tests {
             .vertices
             .iter()
             .all(|v| screen.expand(20.0).contains(v.pos)));
+    }
+
+    #[test]
+    fn auto_range_follows_robust_percentiles_and_ignores_outliers() {
+        let mut scratch = Vec::new();
+        // 1000 particles at 0–1 m/s and ten splashing at 40 m/s: the scale follows the bulk.
+        let mut speeds: Vec<f32> = (0..1000).map(|k| k as f32 / 1000.0).collect();
+        speeds.extend([40.0; 10]);
+        let (lo, hi) = Coloring::Speed.auto_target(&speeds, &mut scratch).unwrap();
+        assert_eq!(lo, 0.0);
+        assert!(hi > 0.95 && hi < 1.1, "{hi}");
+        // Water at rest: the range does not collapse onto the noise.
+        let still = vec![1e-4f32; 100];
+        let (_, hi) = Coloring::Speed.auto_target(&still, &mut scratch).unwrap();
+        assert!(hi >= 0.05, "{hi}");
+        // Density error: symmetric, set by compression (the surface's -20 % is left out).
+        let mut errors = vec![0.2f32; 900];
+        errors.extend([-20.0; 100]);
+        let (lo, hi) = Coloring::Density
+            .auto_target(&errors, &mut scratch)
+            .unwrap();
+        assert_eq!(lo, -hi);
+        assert!((hi - 0.2).abs() < 1e-6, "{hi}");
+        // Pressure: from 0 up; NaN is skipped; nothing finite gives no target.
+        let p = [0.0, 5000.0, f32::NAN, 9000.0, 10000.0];
+        let (lo, hi) = Coloring::Pressure.auto_target(&p, &mut scratch).unwrap();
+        assert_eq!(lo, 0.0);
+        assert!((9000.0..=10000.0).contains(&hi), "{hi}");
+        assert_eq!(
+            Coloring::Pressure.auto_target(&[f32::NAN], &mut scratch),
+            None
+        );
+    }
+
+    #[test]
+    fn auto_scale_grows_fast_shrinks_slowly_and_a_fixed_scale_stays() {
+        let mut s = ColorScale::new(true, (0.0, 1.0));
+        // The first target is taken at once.
+        s.follow(Some((0.0, 2.0)), 0.016);
+        assert_eq!(s.range, (0.0, 2.0));
+        // A wider target: most of the way within half a second.
+        for _ in 0..30 {
+            s.follow(Some((0.0, 4.0)), 0.016);
+        }
+        assert!(s.range.1 > 3.8, "{:?}", s.range);
+        // A narrower one: still well above it after the same time (no flicker), there in
+        // the end.
+        for _ in 0..30 {
+            s.follow(Some((0.0, 1.0)), 0.016);
+        }
+        assert!(s.range.1 > 2.5, "{:?}", s.range);
+        for _ in 0..1000 {
+            s.follow(Some((0.0, 1.0)), 0.016);
+        }
+        assert!((s.range.1 - 1.0).abs() < 1e-3, "{:?}", s.range);
+        // Fixed: stays where it was fixed, whatever the data.
+        s.set_auto(false);
+        s.follow(Some((0.0, 9.0)), 1.0);
+        assert!((s.range.1 - 1.0).abs() < 1e-3);
+        let mut fixed = ColorScale::new(false, (-1.0, 1.0));
+        fixed.follow(Some((0.0, 9.0)), 1.0);
+        assert_eq!(fixed.range, (-1.0, 1.0));
+        // Auto again after a restart (another scene): takes the next target at once.
+        s.set_auto(true);
+        s.restart();
+        s.follow(Some((0.0, 7.0)), 0.016);
+        assert_eq!(s.range, (0.0, 7.0));
     }
 }
