@@ -3,6 +3,7 @@
 
 use std::cell::RefCell;
 use std::collections::VecDeque;
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::rc::Rc;
 use std::time::{Duration, Instant};
@@ -19,6 +20,7 @@ use crate::input::{Command, InputMapper, Tool, ViewInput};
 use crate::panel::{self, PanelState};
 use crate::render::{self, Coloring, ViewTransform};
 use crate::stepper::Stepper;
+use crate::video::VideoRecorder;
 use crate::ViewerOptions;
 
 /// How long `--exit-after` waits for the screenshot before giving up.
@@ -105,6 +107,8 @@ pub struct ViewerApp {
     /// Steps taken since the window opened, resets included (the recording's clock).
     session_steps: u64,
     recorder: Option<SessionRecorder>,
+    /// The Record button's video.
+    video: VideoRecorder,
 }
 
 impl ViewerApp {
@@ -148,6 +152,7 @@ impl ViewerApp {
             log: Vec::new(),
             session_steps: 0,
             recorder: None,
+            video: VideoRecorder::default(),
         })
     }
 
@@ -266,6 +271,11 @@ impl ViewerApp {
                 ctx.send_viewport_cmd(ViewportCommand::Screenshot);
             }
             Command::ToggleHelp => self.show_help = !self.show_help,
+            Command::ToggleRecording => {
+                let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
+                let said = self.video.toggle(&self.sim, &dir);
+                self.set_status(said);
+            }
         }
     }
 
@@ -397,6 +407,11 @@ impl eframe::App for ViewerApp {
     /// fingerprint of the final state.
     fn on_exit(&mut self, _gl: Option<&eframe::glow::Context>) {
         self.take_back_the_simulation(0.0);
+        // A video being recorded is finished, not lost; its name goes to the terminal.
+        for said in self.video.finish_all(self.sim.time()) {
+            // Not eprintln!: a terminal gone (SIGHUP) must not turn closing into a panic.
+            let _ = writeln!(std::io::stderr(), "{said}");
+        }
         if let Some(rec) = self.recorder.take() {
             let end = End::of(self.session_steps, &self.sim);
             if let Err(e) = rec.recorder.finish(&end) {
@@ -417,6 +432,10 @@ impl eframe::App for ViewerApp {
         // Everything below reads the simulation: it comes home first, with the steps it took
         // while the last frame was drawn.
         self.take_back_the_simulation(frame_seconds);
+        self.video.capture(&self.sim);
+        if let Some(said) = self.video.poll() {
+            self.set_status(said);
+        }
         if self
             .status
             .as_ref()
@@ -444,6 +463,7 @@ impl eframe::App for ViewerApp {
                         coloring: &mut self.coloring,
                         radius_edit: &mut self.radius_edit,
                         paused: self.paused,
+                        recording: self.video.is_recording(),
                         status: status.as_deref(),
                     },
                 );

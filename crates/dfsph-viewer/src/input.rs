@@ -31,6 +31,10 @@ pub const KEY_HELP: &[(&str, &str)] = &[
     ("1 – 9", "load a built-in scene"),
     ("C", "cycle the colouring (speed, density, pressure)"),
     ("F12", "save a PNG screenshot to the current directory"),
+    (
+        "V",
+        "record / stop a video (GIF, and MP4 with ffmpeg) into the current directory",
+    ),
     ("H or ?", "show / hide this help"),
 ];
 
@@ -58,6 +62,8 @@ pub enum Command {
     CycleColoring,
     /// Save a screenshot to the current directory.
     Screenshot,
+    /// Start or stop recording a video into the current directory.
+    ToggleRecording,
     /// Show or hide the help overlay.
     ToggleHelp,
     /// Restart the current scene with this particle radius, m (from the side panel).
@@ -255,6 +261,9 @@ impl InputMapper {
         }
         if input.key_pressed(Key::F12) {
             out.push(Command::Screenshot);
+        }
+        if input.key_pressed(Key::V) {
+            out.push(Command::ToggleRecording);
         }
         // `?` arrives as Key::Questionmark on some layouts and only as text on others.
         let question = input.key_pressed(Key::Questionmark)
@@ -491,6 +500,7 @@ mod tests {
             (Key::Num2, Command::LoadScene(1)),
             (Key::C, Command::CycleColoring),
             (Key::F12, Command::Screenshot),
+            (Key::V, Command::ToggleRecording),
             (Key::H, Command::ToggleHelp),
             (Key::Questionmark, Command::ToggleHelp),
         ];
@@ -649,6 +659,7 @@ mod tests {
             "1",
             "C",
             "F12",
+            "V",
             "H or ?",
         ] {
             assert!(text.contains(needle), "{needle}");

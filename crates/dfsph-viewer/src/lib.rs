@@ -28,6 +28,7 @@ pub mod input;
 pub mod panel;
 pub mod render;
 pub mod stepper;
+pub mod video;
 
 /// What to show and how long.
 #[derive(Clone, Debug)]
