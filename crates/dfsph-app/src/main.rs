@@ -359,7 +359,8 @@ fn slow_gif_note(formats: &[cli::Format], every: f64) -> Option<String> {
     let shortest = dfsph_io::video::GIF_MIN_DELAY_CS as f64 / 100.0;
     (formats.contains(&cli::Format::Gif) && every < shortest).then(|| {
         format!(
-            "note: a GIF frame lasts at least {shortest} s, so with --every {every} s              {} plays at {:.3}× real time (the time stamps show the simulated time)",
+            "note: a GIF frame lasts at least {shortest} s, so with --every {every} s {} plays \
+             at {:.3}× real time (the time stamps show the simulated time)",
             output::GIF_FILE,
             every / shortest
         )

@@ -147,6 +147,8 @@ fn a_gif_alone_lists_frames_without_files_and_snapshots_under_20_ms_play_in_slow
         stderr.contains("plays at 0.500× real time"),
         "the slow motion is announced: {stderr}"
     );
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(!stderr.contains("  "), "{stderr}");
     let rows = csv_rows(&out.join("particles/index.csv"));
     let frames = gif_frames(&out.join("video.gif"));
     assert_eq!(frames.len(), rows.len() - 1);
