@@ -200,11 +200,19 @@ impl GifWriter {
         to_rgb(frame, w, h, &mut self.rgb);
         self.indices.clear();
         let quantizer = &mut self.quantizer;
-        self.indices.extend(
-            self.rgb
-                .chunks_exact(3)
-                .map(|c| quantizer.index([c[0], c[1], c[2]])),
-        );
+        // Most pixels repeat their left neighbour (background, walls, fills): no lookup.
+        let mut last = None;
+        self.indices.extend(self.rgb.chunks_exact(3).map(|c| {
+            let c = [c[0], c[1], c[2]];
+            match last {
+                Some((l, i)) if l == c => i,
+                _ => {
+                    let i = quantizer.index(c);
+                    last = Some((c, i));
+                    i
+                }
+            }
+        }));
         let delay = self.ticks.next(seconds).min(u64::from(u16::MAX)) as u16;
         let frame = gif::Frame {
             width: w as u16,
