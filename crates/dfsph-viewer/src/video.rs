@@ -6,7 +6,8 @@
 //!
 //! The window only copies what a frame needs (positions, velocities, walls) when simulated
 //! time has moved on by [`FRAME_INTERVAL`]; drawing and encoding happen on a thread of their
-//! own, so recording never stalls the window. The GIF (and the MP4, when ffmpeg is on PATH)
+//! own, so recording never stalls the window, and a short queue between them bounds the
+//! memory a slow encoder could take. The GIF (and the MP4, when ffmpeg is on PATH)
 //! is written under a hidden temporary name and, once complete, given a timestamped name in
 //! the current directory, `dfsph2d-YYYYMMDD-HHMMSS.gif`, never replacing an existing file.
 
@@ -23,6 +24,10 @@ use dfsph_io::video::{GifWriter, Mp4Writer};
 pub const FRAME_INTERVAL: f64 = 0.04;
 /// Width of the recorded frames, pixels (`run`'s default PNG width).
 pub const FRAME_WIDTH: u32 = 800;
+/// Frames waiting to be encoded at most. When the encoder falls behind (a large scene), a
+/// frame is skipped rather than queued without bound; the frame before it is then shown
+/// longer, so the video keeps simulated speed with fewer frames.
+const QUEUE: usize = 8;
 
 /// What the encoding thread is sent.
 enum Message {
@@ -53,7 +58,7 @@ impl Frame {
 
 /// A recording in progress.
 pub struct Recording {
-    messages: mpsc::Sender<Message>,
+    messages: mpsc::SyncSender<Message>,
     worker: JoinHandle<Result<Vec<PathBuf>>>,
     /// Simulated time of the last frame sent.
     last: f64,
@@ -82,7 +87,7 @@ impl VideoRecorder {
         }
         let mp4 = dfsph_io::video::find_ffmpeg();
         let with_mp4 = mp4.is_some();
-        let (messages, inbox) = mpsc::channel();
+        let (messages, inbox) = mpsc::sync_channel(QUEUE);
         let options = RenderOptions {
             width: FRAME_WIDTH,
             speed_max: dfsph_io::render::speed_scale(sim.scene()),
@@ -121,21 +126,26 @@ impl VideoRecorder {
         };
         let t = sim.time();
         if t >= rec.last + FRAME_INTERVAL || t < rec.last {
-            rec.last = t;
-            if rec
+            match rec
                 .messages
-                .send(Message::Frame(Box::new(Frame::of(sim))))
-                .is_err()
+                .try_send(Message::Frame(Box::new(Frame::of(sim))))
             {
-                // The thread ended early (a failed write); `poll` reports why.
-                let rec = self.recording.take().expect("checked above");
-                self.finishing.push(rec.worker);
+                Ok(()) => rec.last = t,
+                // Encoding is behind: this frame is skipped, the next window frame tries
+                // again; the window never waits.
+                Err(mpsc::TrySendError::Full(_)) => {}
+                Err(mpsc::TrySendError::Disconnected(_)) => {
+                    // The thread ended early (a failed write); `poll` reports why.
+                    let rec = self.recording.take().expect("checked above");
+                    self.finishing.push(rec.worker);
+                }
             }
         }
     }
 
     fn stop(&mut self, time: f64) {
         if let Some(rec) = self.recording.take() {
+            // Waits, at most for one frame's encoding, when the queue is full.
             let _ = rec.messages.send(Message::Stop(time));
             self.finishing.push(rec.worker);
         }
@@ -345,5 +355,43 @@ mod tests {
             })
             .count();
         assert_eq!(hidden, 0);
+    }
+
+    /// Waits for the recording to be finished and returns the GIF's delays.
+    fn finished_gif(rec: &mut VideoRecorder, dir: &Path) -> Vec<u16> {
+        for _ in 0..2000 {
+            if let Some(said) = rec.poll() {
+                assert!(said.starts_with("saved "), "{said}");
+                let gif = std::fs::read_dir(dir)
+                    .unwrap()
+                    .map(|e| e.unwrap().path())
+                    .find(|p| p.extension().is_some_and(|e| e == "gif"))
+                    .unwrap();
+                return gif_delays(&gif);
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        panic!("the recording did not finish");
+    }
+
+    #[test]
+    fn frames_skipped_by_a_busy_encoder_keep_the_video_on_simulated_time() {
+        // Stepping as fast as the machine goes asks for frames faster than they are drawn:
+        // whichever are skipped, the frames shown last the simulated time between them.
+        let dir = tempfile::tempdir().unwrap();
+        let mut sim = sim();
+        let mut rec = VideoRecorder::default();
+        rec.toggle(&sim, dir.path());
+        while sim.time() < 1.0 {
+            sim.step();
+            rec.capture(&sim);
+        }
+        let end = sim.time();
+        rec.toggle(&sim, dir.path());
+        let delays = finished_gif(&mut rec, dir.path());
+        assert!(delays.len() <= 27, "{delays:?}");
+        let total: u32 = delays.iter().map(|&d| u32::from(d)).sum();
+        let want = (end * 100.0).round() as u32;
+        assert!(total.abs_diff(want) <= 2, "{total} vs {want}: {delays:?}");
     }
 }
