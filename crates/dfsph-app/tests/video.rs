@@ -315,3 +315,53 @@ fn run_help_names_the_video_formats() {
     assert!(help.contains("gif") && help.contains("mp4"), "{help}");
     assert!(help.contains("ffmpeg"), "{help}");
 }
+
+/// Ctrl-C in a terminal signals the whole foreground process group, ffmpeg included: the run
+/// must still stop after its step with both videos complete (ffmpeg runs in a group of its
+/// own, so only the run hears it and closes the video properly).
+#[cfg(unix)]
+#[test]
+fn ctrl_c_to_the_process_group_completes_the_videos() {
+    use std::os::unix::process::CommandExt;
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    if !have_ffmpeg() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = coarse_scene(tmp.path());
+    let out = tmp.path().join("out");
+    let mut child = Command::new(common::BIN)
+        .args(["run", scene.to_str().unwrap(), "--until", "1000"])
+        .args(["--every", "0.02", "--png-width", "200", "--threads", "2"])
+        .args(["--format", "csv,gif,mp4", "--out"])
+        .arg(&out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .process_group(0)
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !out.join("particles/00010.csv").exists() {
+        assert!(Instant::now() < deadline, "no frames appeared");
+        assert!(child.try_wait().unwrap().is_none(), "the run ended early");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // `kill -INT -PGID`: the whole group, as the terminal does.
+    let status = Command::new("kill")
+        .args(["-INT", "--", &format!("-{}", child.id())])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let o = child.wait_with_output().unwrap();
+    let stderr = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(130), "{stderr}");
+    assert!(
+        stderr.starts_with("error: interrupted at step "),
+        "{stderr}"
+    );
+    let snapshots = index_times(&out).len();
+    assert!(snapshots > 10);
+    assert_eq!(gif_frames(&out.join("video.gif")).len(), snapshots);
+    assert_eq!(ffprobe(&out.join("video.mp4")).0, snapshots);
+}

@@ -326,7 +326,13 @@ impl Mp4Writer {
 
     fn start(&mut self, width: u32, height: u32) -> Result<()> {
         let tmp = tmp_path(&self.path);
-        let mut child = Command::new(&self.ffmpeg)
+        let mut command = Command::new(&self.ffmpeg);
+        // A group of its own: Ctrl-C in a terminal signals the whole foreground group, and an
+        // ffmpeg that heard it would quit before the run had written its last frame. The run
+        // handles Ctrl-C, then closes ffmpeg's input, which ends the video properly.
+        #[cfg(unix)]
+        std::os::unix::process::CommandExt::process_group(&mut command, 0);
+        let mut child = command
             .args(["-hide_banner", "-loglevel", "error", "-y"])
             .args(["-f", "rawvideo", "-pix_fmt", "rgb24"])
             .args(["-s", &format!("{width}x{height}")])
