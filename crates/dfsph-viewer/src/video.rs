@@ -218,8 +218,16 @@ fn encode(
             Message::Stop(time) => (None, time),
         };
         if let Some((previous, t0)) = pending.take() {
-            // After a reset time starts again: the frame gets the usual interval.
-            let shown = if time > t0 { time - t0 } else { FRAME_INTERVAL };
+            let shown = if picture.is_none() {
+                // Stopped: the last frame is shown until the stop, and at least one frame
+                // interval (stopping right after it must not make it flash by).
+                (time - t0).max(FRAME_INTERVAL)
+            } else if time > t0 {
+                time - t0
+            } else {
+                // After a reset time starts again: the frame gets the usual interval.
+                FRAME_INTERVAL
+            };
             gif.push(&previous, shown)?;
             if let Some(mp4) = mp4.as_mut() {
                 mp4.push(&previous, shown)?;
@@ -240,21 +248,23 @@ fn encode(
     let mut saved = Vec::new();
     if gif.frames() > 0 {
         gif.finish()?;
-        saved.push(place(&gif_tmp, dir, "gif")?);
+        saved.push(place(&gif_tmp, dir, "gif", None)?);
     }
     if let Some(mp4) = mp4 {
         if mp4.frames() > 0 {
             mp4.finish()?;
-            saved.push(place(&mp4_tmp, dir, "mp4")?);
+            let beside_the_gif = saved.first().map(|g: &PathBuf| g.with_extension("mp4"));
+            saved.push(place(&mp4_tmp, dir, "mp4", beside_the_gif)?);
         }
     }
     Ok(saved)
 }
 
-/// Give the finished `file` its name, `dfsph2d-YYYYMMDD-HHMMSS.EXT` in `dir` (`-2`, `-3`, …
-/// when taken). A hard link fails rather than replace a file that appeared meanwhile.
-fn place(file: &Path, dir: &Path, ext: &str) -> Result<PathBuf> {
-    let mut candidate = crate::export::timestamped_file(dir, ext);
+/// Give the finished `file` its name: `first` when given and free (the MP4 takes the GIF's
+/// name), else `dfsph2d-YYYYMMDD-HHMMSS.EXT` in `dir` (`-2`, `-3`, … when taken). A hard link
+/// fails rather than replace a file that appeared meanwhile.
+fn place(file: &Path, dir: &Path, ext: &str, first: Option<PathBuf>) -> Result<PathBuf> {
+    let mut candidate = first.unwrap_or_else(|| crate::export::timestamped_file(dir, ext));
     for _ in 0..1000 {
         match std::fs::hard_link(file, &candidate) {
             Ok(()) => {
@@ -337,6 +347,11 @@ mod tests {
         assert_eq!(gifs.len(), 1, "{gifs:?}");
         let gif = gifs.pop().unwrap();
         assert!(said.contains(&gif.display().to_string()), "{said}");
+        // With ffmpeg, the MP4 of the same recording has the same name.
+        if dfsph_io::video::find_ffmpeg().is_some() {
+            let mp4 = gif.with_extension("mp4");
+            assert!(said.contains(&mp4.display().to_string()), "{said}");
+        }
         // 0.2 s at a frame per 0.04 s: 5 or 6 frames (steps do not land on the grid),
         // together 0.2 s long.
         let delays = gif_delays(&gif);
@@ -355,6 +370,28 @@ mod tests {
             })
             .count();
         assert_eq!(hidden, 0);
+    }
+
+    #[test]
+    fn each_frame_is_shown_until_the_next_a_reset_for_an_interval_the_last_until_the_stop() {
+        let dir = tempfile::tempdir().unwrap();
+        let sim = sim();
+        let (tx, rx) = mpsc::sync_channel(QUEUE);
+        // 0.08 to 0.16 skipped (a busy encoder), then a reset to 0.1, stopped 0.01 s after
+        // the last frame.
+        for t in [0.0, 0.04, 0.2, 0.1, 0.14] {
+            let mut frame = Frame::of(&sim);
+            frame.snapshot.time = t;
+            tx.send(Message::Frame(Box::new(frame))).unwrap();
+        }
+        tx.send(Message::Stop(0.15)).unwrap();
+        let options = RenderOptions {
+            width: 100,
+            speed_max: None,
+        };
+        let saved = encode(rx, dir.path(), options, None).unwrap();
+        assert_eq!(saved.len(), 1, "{saved:?}");
+        assert_eq!(gif_delays(&saved[0]), [4, 16, 4, 4, 4]);
     }
 
     /// Waits for the recording to be finished and returns the GIF's delays.
@@ -390,8 +427,13 @@ mod tests {
         rec.toggle(&sim, dir.path());
         let delays = finished_gif(&mut rec, dir.path());
         assert!(delays.len() <= 27, "{delays:?}");
+        // The recorded time, plus at most one interval for the last frame (the state at the
+        // stop, shown at least that long).
         let total: u32 = delays.iter().map(|&d| u32::from(d)).sum();
-        let want = (end * 100.0).round() as u32;
-        assert!(total.abs_diff(want) <= 2, "{total} vs {want}: {delays:?}");
+        let least = (end * 100.0).round() as u32;
+        assert!(
+            (least..=least + 4).contains(&total),
+            "{total} vs {least}: {delays:?}"
+        );
     }
 }
