@@ -165,7 +165,11 @@ pub struct RunArgs {
     #[arg(long, value_name = "SECONDS", default_value = "0.05", value_parser = positive_seconds)]
     pub every: f64,
 
-    /// Snapshot formats, comma-separated: csv, vtk (.vtu for ParaView), png.
+    /// Snapshot formats, comma-separated: csv, vtk (.vtu for ParaView), png, and the videos
+    /// gif (DIR/video.gif) and mp4 (DIR/video.mp4, encoded by ffmpeg, which must be on PATH):
+    /// one frame per snapshot, stamped with its simulated time, each shown for --every
+    /// seconds so the video plays at real-time speed (a GIF frame lasts at least 0.02 s: a
+    /// smaller --every plays in slow motion).
     #[arg(
         long,
         value_name = "FORMATS",
@@ -222,16 +226,32 @@ pub enum Format {
     Vtk,
     /// `NNNNN.png`: a picture of the frame, fluid coloured by speed.
     Png,
+    /// `video.gif`: the pictures of every frame as one animated GIF.
+    Gif,
+    /// `video.mp4`: the pictures of every frame as one H.264 video, encoded by ffmpeg.
+    Mp4,
 }
 
 impl Format {
-    /// File extension of this format's snapshot files.
+    /// File extension of this format's files.
     pub fn extension(self) -> &'static str {
         match self {
             Format::Csv => "csv",
             Format::Vtk => "vtu",
             Format::Png => "png",
+            Format::Gif => "gif",
+            Format::Mp4 => "mp4",
         }
+    }
+
+    /// One file for the whole run (`video.gif`), not one per snapshot.
+    pub fn is_video(self) -> bool {
+        matches!(self, Format::Gif | Format::Mp4)
+    }
+
+    /// Drawn by the rasteriser (a PNG, or a video's frame).
+    pub fn is_picture(self) -> bool {
+        matches!(self, Format::Png | Format::Gif | Format::Mp4)
     }
 }
 
@@ -321,8 +341,24 @@ mod tests {
         assert_eq!(args.format, [Format::Csv, Format::Vtk, Format::Png]);
         assert_eq!(args.every, 0.05);
         assert!(Cli::try_parse_from([
-            "dfsph2d", "run", "drop", "--until", "1", "--out", "o", "--format", "csv,gif",
+            "dfsph2d", "run", "drop", "--until", "1", "--out", "o", "--format", "csv,avi",
         ])
         .is_err());
+        let cli = Cli::try_parse_from([
+            "dfsph2d",
+            "run",
+            "drop",
+            "--until",
+            "1",
+            "--out",
+            "o",
+            "--format",
+            "png,gif,mp4",
+        ])
+        .unwrap();
+        let Some(Command::Run(args)) = cli.command else {
+            panic!("expected run");
+        };
+        assert_eq!(args.format, [Format::Png, Format::Gif, Format::Mp4]);
     }
 }

@@ -4,7 +4,7 @@
 //! dfsph2d                                   open the viewer on the dam break
 //! dfsph2d view [SCENE] [--exit-after S] [--save-on-exit DIR] [--record FILE]
 //! dfsph2d scenes                            list built-in scenes
-//! dfsph2d run SCENE --until S --out DIR [--every S] [--format csv,vtk,png] [--threads N]
+//! dfsph2d run SCENE --until S --out DIR [--every S] [--format csv,vtk,png,gif,mp4] [--threads N]
 //! dfsph2d run SCENE --replay FILE --out DIR [--until S] ...
 //! dfsph2d stress [SCENE] --seed N --steps K [--record FILE] [--density-bound PCT]
 //! dfsph2d validate [--quick] --out DIR      validation report against experiments
@@ -186,6 +186,14 @@ fn run(args: RunArgs) -> Result<(), Failure> {
         None => scene,
     };
     check_every(args.every, args.until, recording.as_ref(), &scene).map_err(Failure::input)?;
+    // An MP4 is encoded by ffmpeg: without it the run would fail at its first frame, so it is
+    // refused before anything is simulated or written.
+    if args.format.contains(&cli::Format::Mp4) && dfsph_io::video::find_ffmpeg().is_none() {
+        return Err(Failure::input(format!(
+            "--format mp4: {}",
+            dfsph_io::video::FFMPEG_MISSING
+        )));
+    }
     output::check_output_dir(&args.out).map_err(Failure::input)?;
     // A replay may pour up to the recorded scene's budget.
     let fluid = match &recording {
@@ -215,6 +223,9 @@ fn run(args: RunArgs) -> Result<(), Failure> {
         );
     }
     if let Some(note) = long_run_note(&sim, args.until) {
+        let _ = writeln!(std::io::stderr(), "{note}");
+    }
+    if let Some(note) = slow_gif_note(&args.format, args.every) {
         let _ = writeln!(std::io::stderr(), "{note}");
     }
     output::create_output_dir(&args.out).map_err(Failure::input)?;
@@ -337,6 +348,21 @@ fn long_run_note(sim: &Simulation, until: Option<f64>) -> Option<String> {
         format!(
             "note: this run will take at least {steps:.2e} steps (Δt ≤ {dt:.2e} s from the \
              scene's time step and stability bounds); Ctrl-C stops it with its output complete"
+        )
+    })
+}
+
+/// A `note:` line when `--format gif` is asked for snapshots closer together than a GIF
+/// frame can last ([`dfsph_io::video::GIF_MIN_DELAY_CS`]): every snapshot is kept, so the GIF
+/// plays slower than real time, and the user is told by how much.
+fn slow_gif_note(formats: &[cli::Format], every: f64) -> Option<String> {
+    let shortest = dfsph_io::video::GIF_MIN_DELAY_CS as f64 / 100.0;
+    (formats.contains(&cli::Format::Gif) && every < shortest).then(|| {
+        format!(
+            "note: a GIF frame lasts at least {shortest} s, so with --every {every} s {} plays \
+             at {:.3}× real time (the time stamps show the simulated time)",
+            output::GIF_FILE,
+            every / shortest
         )
     })
 }

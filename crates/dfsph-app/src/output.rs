@@ -9,8 +9,13 @@
 //! DIR/particles/walls_NNNNN.vtu the walls (tank, obstacles, drawn walls) as boundary
 //!                             particles, VTK only, written when they changed
 //! DIR/particles/walls.pvd     ParaView collection of the walls at every frame's time
+//! DIR/video.gif, video.mp4    every snapshot's picture in one animation (`--format gif,mp4`)
 //! DIR/.dfsph2d-manifest       every file above that this run wrote, one per line
 //! ```
+//!
+//! A video is written to `video.gif.tmp` (`video.mp4.tmp`, by ffmpeg) as the run goes and
+//! renamed when the run ends, so `video.gif` exists only complete; a run stopped by an error
+//! leaves neither, a run stopped by Ctrl-C finishes the video with the frames it wrote.
 //!
 //! What a run completed survives however it stops (SIGKILL, a full disk): `stats.csv`,
 //! `probes.csv` and `index.csv` grow one complete line at a time, on disk at once; snapshots,
@@ -39,23 +44,40 @@ pub const PARTICLES_DIR: &str = "particles";
 /// The list of files a run wrote, in the output directory, relative to it.
 pub const MANIFEST: &str = ".dfsph2d-manifest";
 
+/// The GIF of `--format gif`, in the output directory.
+pub const GIF_FILE: &str = "video.gif";
+
+/// The MP4 of `--format mp4`, in the output directory.
+pub const MP4_FILE: &str = "video.mp4";
+
 /// First line of [`MANIFEST`].
 const MANIFEST_HEADER: &str =
     "# dfsph2d run: files written by this run, removed by the next run in this directory";
 
 /// Memory the frame writers take besides the simulation's snapshot, bytes, for the memory
-/// check (`dfsph::memory`): a PNG frame is a pixmap of `png_width` × its height in RGBA
-/// and its encoded copy (at most as large); a VTK frame builds its arrays (53 bytes per
-/// particle) and the base64 text of the largest (16 bytes per particle).
+/// check (`dfsph::memory`): a picture (PNG or video frame) is a pixmap of `png_width` × its
+/// height in RGBA and its encoded copy (at most as large); a GIF frame adds its RGB copy and
+/// palette indices (4 bytes a pixel), an MP4 frame its RGB copy (3); a VTK frame builds its
+/// arrays (53 bytes per particle) and the base64 text of the largest (16 bytes per particle).
 pub fn buffer_bytes(formats: &[Format], png_width: u32, scene: &Scene, fluid: u64) -> u64 {
     let mut bytes = 0u64;
-    if formats.contains(&Format::Png) {
+    if formats.iter().any(|f| f.is_picture()) {
         let width = png_width.clamp(dfsph_io::render::MIN_WIDTH, dfsph_io::render::MAX_SIDE) as f64;
         let margin = 4.0 * scene.spacing();
         let aspect = (scene.tank.max[1] - scene.tank.min[1] + margin)
             / (scene.tank.max[0] - scene.tank.min[0] + margin);
         let height = (width * aspect + 64.0).min(dfsph_io::render::MAX_SIDE as f64);
-        bytes += (2.0 * 4.0 * width * height) as u64;
+        let per_pixel =
+            8.0 + if formats.contains(&Format::Gif) {
+                4.0
+            } else {
+                0.0
+            } + if formats.contains(&Format::Mp4) {
+                3.0
+            } else {
+                0.0
+            };
+        bytes += (per_pixel * width * height) as u64;
     }
     if formats.contains(&Format::Vtk) {
         bytes = bytes.saturating_add(fluid.saturating_mul(53 + 16));
@@ -128,6 +150,8 @@ pub fn create_output_dir(dir: &Path) -> Result<(), String> {
         dir.join("probes.csv.tmp"),
         particles.join("index.csv.tmp"),
         particles.join("particles.pvd.tmp"),
+        dfsph_io::atomic::tmp_path(&dir.join(GIF_FILE)),
+        dfsph_io::atomic::tmp_path(&dir.join(MP4_FILE)),
     ] {
         remove_our_file(&tmp)?;
     }
@@ -174,7 +198,10 @@ fn is_our_output(name: &str) -> bool {
                 || matches!(file, "index.csv" | "particles.pvd" | "walls.pvd")
         }
         Some(_) => false,
-        None => matches!(name, "scene.json" | "stats.csv" | "probes.csv"),
+        None => matches!(
+            name,
+            "scene.json" | "stats.csv" | "probes.csv" | GIF_FILE | MP4_FILE
+        ),
     }
 }
 
@@ -242,7 +269,16 @@ fn is_frame_file(name: &str) -> bool {
 /// atomically), so the index of a run stopped at any point lists exactly its complete frames.
 pub struct FrameWriter {
     dir: PathBuf,
+    /// Formats with a file per snapshot (csv, vtk, png).
     formats: Vec<Format>,
+    /// Draw a picture of each frame (png, gif, mp4).
+    pictures: bool,
+    gif: Option<dfsph_io::video::GifWriter>,
+    mp4: Option<dfsph_io::video::Mp4Writer>,
+    /// Simulated time between snapshots, s: how long each video frame is shown.
+    every: f64,
+    /// Digits of the video frames' time stamps.
+    decimals: usize,
     frames: Vec<FrameRecord>,
     index: dfsph_io::AppendFile,
     /// Frames listed in the `particles.pvd` on disk.
@@ -264,18 +300,41 @@ const PVD_EVERY_FRAME_UP_TO: usize = 1024;
 const PVD_GROWTH: usize = 64;
 
 impl FrameWriter {
-    /// Frames go to `out/particles`; `formats` is deduplicated and ordered csv, vtk, png.
-    /// Creates `out/particles/index.csv` with its header.
+    /// Frames go to `out/particles`, videos to `out/video.gif` and `out/video.mp4`;
+    /// `formats` is deduplicated and ordered csv, vtk, png. Creates
+    /// `out/particles/index.csv` with its header. `every` is the snapshot interval, s.
     pub fn create(
         out: &Path,
         formats: &[Format],
         scene: &Scene,
         png_width: u32,
+        every: f64,
         manifest: &mut Manifest,
     ) -> Result<Self> {
         let mut formats = formats.to_vec();
         formats.sort();
         formats.dedup();
+        let pictures = formats.iter().any(|f| f.is_picture());
+        let gif = if formats.contains(&Format::Gif) {
+            manifest.record(GIF_FILE)?;
+            Some(dfsph_io::video::GifWriter::new(out.join(GIF_FILE)))
+        } else {
+            None
+        };
+        let mp4 = if formats.contains(&Format::Mp4) {
+            // Checked before the run started (`main.rs`); here for any other caller.
+            let ffmpeg = dfsph_io::video::find_ffmpeg()
+                .ok_or_else(|| anyhow::anyhow!(dfsph_io::video::FFMPEG_MISSING))?;
+            manifest.record(MP4_FILE)?;
+            Some(dfsph_io::video::Mp4Writer::new(
+                out.join(MP4_FILE),
+                ffmpeg,
+                every,
+            ))
+        } else {
+            None
+        };
+        formats.retain(|f| !f.is_video());
         let dir = out.join(PARTICLES_DIR);
         manifest.record(&format!("{PARTICLES_DIR}/index.csv"))?;
         let mut index = dfsph_io::AppendFile::create(dir.join("index.csv"))?;
@@ -287,6 +346,11 @@ impl FrameWriter {
         Ok(Self {
             dir,
             formats,
+            pictures,
+            gif,
+            mp4,
+            every,
+            decimals: dfsph_io::video::stamp_decimals(every),
             frames: Vec::new(),
             index,
             pvd_frames: 0,
@@ -294,7 +358,7 @@ impl FrameWriter {
             last_walls: None,
             png: RenderOptions {
                 width: png_width,
-                speed_max: speed_scale(scene),
+                speed_max: dfsph_io::render::speed_scale(scene),
             },
             last_step: None,
         })
@@ -321,6 +385,16 @@ impl FrameWriter {
         let frame = self.frames.len() as u32;
         let stem = format!("{frame:05}");
         let snapshot = sim.snapshot();
+        // One picture for the PNG and the videos' frame.
+        let mut picture = if self.pictures {
+            Some(dfsph_io::render_frame(
+                &RenderGeometry::of(sim),
+                &snapshot,
+                &self.png,
+            )?)
+        } else {
+            None
+        };
         for format in self.formats.clone() {
             let name = format!("{stem}.{}", format.extension());
             manifest.record(&format!("{PARTICLES_DIR}/{name}"))?;
@@ -332,15 +406,33 @@ impl FrameWriter {
                     self.write_walls(sim, &stem, manifest)?;
                 }
                 Format::Png => {
-                    dfsph_io::write_png(&path, &RenderGeometry::of(sim), &snapshot, &self.png)?
+                    let pixmap = picture.as_ref().expect("drawn for png");
+                    dfsph_io::render::write_pixmap_png(&path, pixmap)?
                 }
+                Format::Gif | Format::Mp4 => unreachable!("videos are not per-frame files"),
             }
         }
-        let first = self.formats.first().copied().unwrap_or(Format::Csv);
+        if let Some(pixmap) = picture.as_mut() {
+            if self.gif.is_some() || self.mp4.is_some() {
+                dfsph_io::render::stamp_time(pixmap, snapshot.time, self.decimals);
+            }
+            if let Some(gif) = self.gif.as_mut() {
+                gif.push(pixmap, self.every)?;
+            }
+            if let Some(mp4) = self.mp4.as_mut() {
+                mp4.push(pixmap, self.every)?;
+            }
+        }
+        // Without a file per snapshot (videos only) the row names none: the frame is the
+        // video's frame of the same number.
+        let file = match self.formats.first() {
+            Some(first) => format!("{stem}.{}", first.extension()),
+            None => String::new(),
+        };
         let record = FrameRecord {
             frame,
             time: snapshot.time,
-            file: format!("{stem}.{}", first.extension()),
+            file,
         };
         // Listed only once every file of the frame is complete.
         self.index.append(&dfsph_io::frame_index_row(&record))?;
@@ -402,26 +494,18 @@ impl FrameWriter {
         Ok(())
     }
 
-    /// Bring `particles.pvd` up to date and make `index.csv` durable.
+    /// Bring `particles.pvd` up to date, make `index.csv` durable and complete the videos.
     pub fn finish(mut self) -> Result<()> {
         self.write_pvd()?;
-        self.index.finish()
+        self.index.finish()?;
+        if let Some(gif) = self.gif.take() {
+            gif.finish()?;
+        }
+        if let Some(mp4) = self.mp4.take() {
+            mp4.finish()?;
+        }
+        Ok(())
     }
-}
-
-/// A fixed top of the PNG colour scale for the whole run, so colours mean the same speed in
-/// every frame: the speed of a fall from the top of the tank, `√(2·|g|·H)`, plus the fastest
-/// initial block velocity. `None` (scale per frame) when that is zero.
-fn speed_scale(scene: &Scene) -> Option<f32> {
-    let g = scene.gravity[0].hypot(scene.gravity[1]);
-    let height = scene.tank.max[1] - scene.tank.min[1];
-    let initial = scene
-        .fluid
-        .iter()
-        .map(|b| b.velocity[0].hypot(b.velocity[1]))
-        .fold(0.0, f64::max);
-    let v = (2.0 * g * height).sqrt() + initial;
-    (v.is_finite() && v > 0.0).then_some(v as f32)
 }
 
 #[cfg(test)]
@@ -553,15 +637,5 @@ mod tests {
         let err = check_output_dir(&out).unwrap_err();
         assert!(err.contains("is a symbolic link"), "{err}");
         assert!(create_output_dir(&out).is_err());
-    }
-
-    #[test]
-    fn speed_scale_is_a_fall_from_the_tank_top() {
-        let s = dfsph::scene::builtin("dam-break").unwrap();
-        let v = speed_scale(&s).unwrap();
-        assert!((v - (2.0f32 * 9.81 * 3.0).sqrt()).abs() < 1e-3);
-        let mut still = s.clone();
-        still.gravity = [0.0, 0.0];
-        assert_eq!(speed_scale(&still), None);
     }
 }

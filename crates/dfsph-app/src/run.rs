@@ -137,6 +137,7 @@ pub fn execute_with(
         &plan.formats,
         &plan.scene,
         plan.png_width,
+        plan.every,
         &mut manifest,
     )?;
     let mut schedule = SnapshotSchedule::new(plan.every);

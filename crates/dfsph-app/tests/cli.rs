@@ -690,7 +690,7 @@ fn bad_arguments_exit_2_and_write_nothing() {
     assert_rejected(dir, scene, &["--until", "inf"], "--until");
     assert_rejected(dir, scene, &["--every", "0"], "--every");
     assert_rejected(dir, scene, &["--every", "soon"], "--every");
-    assert_rejected(dir, scene, &["--format", "csv,gif"], "gif");
+    assert_rejected(dir, scene, &["--format", "csv,avi"], "avi");
     assert_rejected(dir, scene, &["--threads", "0"], "--threads");
 
     // --out naming an existing file: refused, the file untouched.

@@ -1,5 +1,6 @@
-//! A tiny bitmap font (5 pixels high) for the PNG legend's labels: digits, `.`, `-`, `+`,
-//! `e`, `m`, `/`, `s` and space. Enough for "0" and "6.3 m/s" without shipping a font file.
+//! A tiny bitmap font (5 pixels high) for the PNG legend's labels and the videos' time stamps:
+//! digits, `.`, `-`, `+`, `e`, `m`, `/`, `s`, `t`, `=` and space. Enough for "0", "6.3 m/s"
+//! and "t = 0.350 s" without shipping a font file.
 
 use tiny_skia::{Color, Paint, Pixmap, Rect, Transform};
 
@@ -23,6 +24,8 @@ fn glyph(c: char) -> Option<(u8, [u8; 5])> {
         'm' => (5, [0, 0b11010, 0b10101, 0b10101, 0b10101]),
         's' => (3, [0b011, 0b100, 0b010, 0b001, 0b110]),
         '/' => (3, [0b001, 0b001, 0b010, 0b100, 0b100]),
+        't' => (3, [0b010, 0b111, 0b010, 0b010, 0b011]),
+        '=' => (3, [0, 0b111, 0, 0b111, 0]),
         ' ' => (2, [0; 5]),
         _ => return None,
     })

@@ -9,7 +9,9 @@
 //! - [`vtk`]: VTK XML UnstructuredGrid (`.vtu`) snapshots that ParaView opens, and a `.pvd`
 //!   collection that gives ParaView the frame times;
 //! - [`render`]: a CPU rasteriser (tiny-skia) that draws a frame to PNG, fluid coloured by
-//!   speed with a [`colormap`] and a legend.
+//!   speed with a [`colormap`] and a legend;
+//! - [`video`]: those frames, stamped with their simulated time, as an animated GIF (pure
+//!   Rust) or an MP4 (through `ffmpeg`), playing at simulated speed.
 //!
 //! Snapshots and other whole files are written atomically ([`atomic`]): to `NAME.tmp` in the
 //! same directory, synced, then renamed, so a reader never sees a half-written file. Files that
@@ -23,6 +25,7 @@ pub mod csv;
 mod font;
 pub mod render;
 pub mod stats;
+pub mod video;
 pub mod vtk;
 
 pub use append::AppendFile;

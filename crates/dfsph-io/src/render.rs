@@ -113,7 +113,7 @@ pub fn render_frame(
     let size = hi - lo;
 
     let width = options.width.clamp(MIN_WIDTH, MAX_SIDE);
-    let band = (width / 20).clamp(16, 64);
+    let band = band_height(width);
     let scale = (width as f32 / size.x).min((MAX_SIDE - band) as f32 / size.y);
     let scene_height = ((size.y * scale).ceil() as u32).max(1);
     let height = band + scene_height;
@@ -172,6 +172,49 @@ pub fn render_frame(
 
     draw_legend(&mut pixmap, band, top_speed);
     Ok(pixmap)
+}
+
+/// Height of the legend band above the scene in an image `width` pixels wide.
+fn band_height(width: u32) -> u32 {
+    (width / 20).clamp(16, 64)
+}
+
+/// Write the simulated time, `t = 0.350 s` with `decimals` digits after the point, at the
+/// right end of the legend band of a frame drawn by [`render_frame`] (the videos' frames:
+/// a still picture has its time in `index.csv`). The band's right part is free: the legend
+/// takes its left half.
+pub fn stamp_time(pixmap: &mut Pixmap, time: f64, decimals: usize) {
+    let band = band_height(pixmap.width());
+    let text_scale = (band / 10).max(1);
+    let text = format!("t = {time:.decimals$} s");
+    let margin = band / 4;
+    let x = pixmap
+        .width()
+        .saturating_sub(font::text_width(&text, text_scale) + margin);
+    let y = 0.5 * (band as f32 - font::text_height(text_scale) as f32);
+    let grey = Color::from_rgba8(TEXT_GREY, TEXT_GREY, TEXT_GREY, 255);
+    font::draw_text(pixmap, x as f32, y, text_scale, &text, grey);
+}
+
+/// The rectangle [`stamp_time`] draws into, as `(x, y, width, height)` in pixels: the right
+/// half of the legend band (for tests that compare stamps).
+pub fn stamp_region(width: u32) -> (u32, u32, u32, u32) {
+    (width / 2, 0, width - width / 2, band_height(width))
+}
+
+/// A fixed top of the colour scale for a whole run of `scene`, so colours mean the same speed
+/// in every frame: the speed of a fall from the top of the tank, `√(2·|g|·H)`, plus the
+/// fastest initial block velocity. `None` (scale per frame) when that is zero.
+pub fn speed_scale(scene: &dfsph::Scene) -> Option<f32> {
+    let g = scene.gravity[0].hypot(scene.gravity[1]);
+    let height = scene.tank.max[1] - scene.tank.min[1];
+    let initial = scene
+        .fluid
+        .iter()
+        .map(|b| b.velocity[0].hypot(b.velocity[1]))
+        .fold(0.0, f64::max);
+    let v = (2.0 * g * height).sqrt() + initial;
+    (v.is_finite() && v > 0.0).then_some(v as f32)
 }
 
 fn fill(pixmap: &mut Pixmap, path: PathBuilder, rgb: [u8; 3]) {
@@ -249,8 +292,12 @@ pub fn write_png(
     snapshot: &Snapshot,
     options: &RenderOptions,
 ) -> Result<()> {
+    write_pixmap_png(path, &render_frame(geometry, snapshot, options)?)
+}
+
+/// Write a frame drawn by [`render_frame`] as a PNG (atomically).
+pub fn write_pixmap_png(path: impl AsRef<Path>, pixmap: &Pixmap) -> Result<()> {
     let path = path.as_ref();
-    let pixmap = render_frame(geometry, snapshot, options)?;
     let bytes = pixmap
         .encode_png()
         .with_context(|| format!("cannot encode `{}`", path.display()))?;
@@ -395,6 +442,45 @@ mod tests {
         };
         let img = render_frame(&geometry, &snap, &RenderOptions::default()).unwrap();
         assert!(img.encode_png().is_ok());
+    }
+
+    #[test]
+    fn speed_scale_is_a_fall_from_the_tank_top() {
+        let s = dfsph::scene::builtin("dam-break").unwrap();
+        let v = speed_scale(&s).unwrap();
+        assert!((v - (2.0f32 * 9.81 * 3.0).sqrt()).abs() < 1e-3);
+        let mut still = s.clone();
+        still.gravity = [0.0, 0.0];
+        assert_eq!(speed_scale(&still), None);
+    }
+
+    #[test]
+    fn time_stamps_differ_in_the_stamp_region_only() {
+        let walls = [];
+        let snap = Snapshot::default();
+        let geometry = RenderGeometry {
+            tank_min: Vec2::ZERO,
+            tank_max: Vec2::new(2.0, 1.0),
+            boundary: &walls,
+            particle_radius: 0.01,
+        };
+        let plain = render_frame(&geometry, &snap, &RenderOptions::default()).unwrap();
+        let mut a = plain.clone();
+        let mut b = plain.clone();
+        stamp_time(&mut a, 0.35, 3);
+        stamp_time(&mut b, 0.4, 3);
+        let (x0, y0, w, h) = stamp_region(plain.width());
+        let differs = |p: &Pixmap, q: &Pixmap, inside: bool| {
+            (0..p.height()).any(|y| {
+                (0..p.width()).any(|x| {
+                    let within = x >= x0 && x < x0 + w && y >= y0 && y < y0 + h;
+                    within == inside && p.pixel(x, y) != q.pixel(x, y)
+                })
+            })
+        };
+        assert!(differs(&a, &plain, true), "the stamp draws something");
+        assert!(differs(&a, &b, true), "different times, different stamps");
+        assert!(!differs(&a, &plain, false), "nothing outside the region");
     }
 
     #[test]

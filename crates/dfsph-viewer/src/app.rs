@@ -3,6 +3,7 @@
 
 use std::cell::RefCell;
 use std::collections::VecDeque;
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::rc::Rc;
 use std::time::{Duration, Instant};
@@ -20,6 +21,7 @@ use crate::panel::{self, PanelState};
 use crate::render::{self, ColorScale, Coloring, ViewTransform};
 use crate::scene_file::{self, SceneOpener};
 use crate::stepper::Stepper;
+use crate::video::VideoRecorder;
 use crate::view::{self, Camera, Layout};
 use crate::ViewerOptions;
 
@@ -133,6 +135,8 @@ pub struct ViewerApp {
     /// Steps taken since the window opened, resets included (the recording's clock).
     session_steps: u64,
     recorder: Option<SessionRecorder>,
+    /// The Record button's video.
+    video: VideoRecorder,
 }
 
 impl ViewerApp {
@@ -198,6 +202,7 @@ impl ViewerApp {
             log: Vec::new(),
             session_steps: 0,
             recorder: None,
+            video: VideoRecorder::default(),
         })
     }
 
@@ -377,6 +382,11 @@ impl ViewerApp {
                 ctx.send_viewport_cmd(ViewportCommand::Screenshot);
             }
             Command::ToggleHelp => self.show_help = !self.show_help,
+            Command::ToggleRecording => {
+                let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
+                let said = self.video.toggle(&self.sim, &dir);
+                self.set_status(said);
+            }
             // The view commands are applied where the view's geometry is known (`update`).
             Command::ZoomView { .. } | Command::PanView { .. } | Command::ResetView => {}
         }
@@ -549,6 +559,11 @@ impl eframe::App for ViewerApp {
     /// fingerprint of the final state.
     fn on_exit(&mut self, _gl: Option<&eframe::glow::Context>) {
         self.take_back_the_simulation(0.0);
+        // A video being recorded is finished, not lost; its name goes to the terminal.
+        for said in self.video.finish_all(self.sim.time()) {
+            // Not eprintln!: a terminal gone (SIGHUP) must not turn closing into a panic.
+            let _ = writeln!(std::io::stderr(), "{said}");
+        }
         if let Some(rec) = self.recorder.take() {
             let end = End::of(self.session_steps, &self.sim);
             if let Err(e) = rec.recorder.finish(&end) {
@@ -569,6 +584,10 @@ impl eframe::App for ViewerApp {
         // Everything below reads the simulation: it comes home first, with the steps it took
         // while the last frame was drawn.
         self.take_back_the_simulation(frame_seconds);
+        self.video.capture(&self.sim);
+        if let Some(said) = self.video.poll() {
+            self.set_status(said);
+        }
         if self
             .status
             .as_ref()
@@ -602,6 +621,7 @@ impl eframe::App for ViewerApp {
                             self.requested_max_particles,
                         ),
                         paused: self.paused,
+                        recording: self.video.is_recording(),
                         status: status.as_deref(),
                     },
                 );

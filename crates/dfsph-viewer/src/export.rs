@@ -36,14 +36,19 @@ pub fn read_png(path: &Path) -> anyhow::Result<(u32, u32, Vec<[u8; 4]>)> {
 
 /// `dfsph2d-YYYYMMDD-HHMMSS.png` (UTC) in `dir`, with `-2`, `-3`, ... appended when taken.
 pub fn timestamped_png(dir: &Path) -> PathBuf {
+    timestamped_file(dir, "png")
+}
+
+/// `dfsph2d-YYYYMMDD-HHMMSS.EXT` (UTC) in `dir`, with `-2`, `-3`, ... appended when taken.
+pub fn timestamped_file(dir: &Path, ext: &str) -> PathBuf {
     let secs = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| d.as_secs());
     let stem = format!("dfsph2d-{}", utc_stamp(secs));
-    let mut path = dir.join(format!("{stem}.png"));
+    let mut path = dir.join(format!("{stem}.{ext}"));
     let mut k = 2;
     while path.exists() {
-        path = dir.join(format!("{stem}-{k}.png"));
+        path = dir.join(format!("{stem}-{k}.{ext}"));
         k += 1;
     }
     path

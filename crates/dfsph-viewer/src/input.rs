@@ -43,6 +43,10 @@ pub const KEY_HELP: &[(&str, &str)] = &[
         "save the state as a scene, scene-<time>.json in the current directory",
     ),
     ("Ctrl+O or drop a .json", "open a scene file"),
+    (
+        "V",
+        "record / stop a video (GIF, and MP4 with ffmpeg) into the current directory",
+    ),
     ("H or ?", "show / hide this help"),
 ];
 
@@ -94,6 +98,8 @@ pub enum Command {
     CycleColoring,
     /// Save a screenshot to the current directory.
     Screenshot,
+    /// Start or stop recording a video into the current directory.
+    ToggleRecording,
     /// Show or hide the help overlay.
     ToggleHelp,
     /// Restart the current scene with this particle radius, m (from the side panel).
@@ -328,6 +334,9 @@ impl InputMapper {
         }
         if input.modifiers.command && input.key_pressed(Key::O) {
             out.push(Command::OpenScene);
+        }
+        if input.key_pressed(Key::V) {
+            out.push(Command::ToggleRecording);
         }
         // `?` arrives as Key::Questionmark on some layouts and only as text on others.
         let question = input.key_pressed(Key::Questionmark)
@@ -608,6 +617,7 @@ mod tests {
             (Key::Num2, Command::LoadScene(1)),
             (Key::C, Command::CycleColoring),
             (Key::F12, Command::Screenshot),
+            (Key::V, Command::ToggleRecording),
             (Key::H, Command::ToggleHelp),
             (Key::Questionmark, Command::ToggleHelp),
         ];
@@ -866,6 +876,7 @@ mod tests {
             "1",
             "C",
             "F12",
+            "V",
             "H or ?",
             "Ctrl+S",
             "Ctrl+O",

@@ -29,6 +29,7 @@ pub mod panel;
 pub mod render;
 pub mod scene_file;
 pub mod stepper;
+pub mod video;
 pub mod view;
 
 /// What to show and how long.

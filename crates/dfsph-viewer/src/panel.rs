@@ -27,6 +27,8 @@ pub struct PanelState<'a> {
     /// off (a scene that lists its particles).
     pub radius_range: Option<(f64, f64)>,
     pub paused: bool,
+    /// A video is being recorded.
+    pub recording: bool,
     /// The last message for the user (rejected actions, saved files).
     pub status: Option<&'a str>,
 }
@@ -62,6 +64,14 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
         ui.horizontal(|ui| {
             if ui.button("Screenshot").clicked() {
                 out.push(Command::Screenshot);
+            }
+            let record = if st.recording { "⏹ Stop" } else { "⏺ Record" };
+            if ui
+                .button(record)
+                .on_hover_text("A GIF (and an MP4 with ffmpeg) of the simulation, at simulated speed, into the current directory (V)")
+                .clicked()
+            {
+                out.push(Command::ToggleRecording);
             }
             if ui.button("Help").clicked() {
                 out.push(Command::ToggleHelp);
