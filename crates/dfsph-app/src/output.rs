@@ -535,7 +535,8 @@ mod tests {
         scene.particle_radius = 0.05;
         let mut sim = Simulation::new(&scene).unwrap();
         let mut frames =
-            FrameWriter::create(dir.path(), &[Format::Vtk], &scene, 320, &mut manifest).unwrap();
+            FrameWriter::create(dir.path(), &[Format::Vtk], &scene, 320, 0.05, &mut manifest)
+                .unwrap();
         frames.write(&sim, &mut manifest).unwrap();
         sim.step();
         frames.write(&sim, &mut manifest).unwrap(); // walls unchanged: no new file
