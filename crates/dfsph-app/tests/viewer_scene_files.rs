@@ -32,8 +32,9 @@ fn tools_missing() -> bool {
     !missing.is_empty()
 }
 
-/// `dfsph2d view SCENE --exit-after SECS --save-on-exit DIR`, run in `cwd`; with `keys`,
-/// they are pressed together in the window once it shows (a chord: `["ctrl", "s"]`). Returns once the viewer has exited successfully; panics with its output otherwise.
+/// `dfsph2d view SCENE --exit-after SECS --save-on-exit DIR`, run in `cwd`; with `keys`, they are
+/// pressed together in the window once it shows (a chord: `["ctrl", "s"]`). Returns once the viewer
+/// has exited successfully; panics with its output otherwise.
 fn view(display: &str, scene: &Path, exit_after: f64, dir: &Path, cwd: &Path, keys: &[&str]) {
     let log_path = dir.with_extension("log");
     for attempt in 1..=3 {

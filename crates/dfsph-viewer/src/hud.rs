@@ -238,9 +238,9 @@ fn grid_marks(g: GridInput, min_points: f32) -> Vec<GridMark> {
     ticks(lo, hi, points, min_points as f64)
 }
 
-/// A tick label: as many decimals as the step needs and no more ("0.003", "0.25", "40"),
-/// thousands as "k" ("12k", "24.3k") and tiny or huge steps in scientific notation ("2e-5"); exactly
-/// "0" at zero.
+/// A tick label: as many decimals as the step needs and no more ("0.003", "0.25", "40"), thousands
+/// as "k" ("12k", "24.3k") and tiny or huge steps in scientific notation ("2e-5"); exactly "0" at
+/// zero.
 pub fn format_tick(value: f64, step: f64) -> String {
     if !value.is_finite() {
         return String::new();

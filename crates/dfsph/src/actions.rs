@@ -49,10 +49,10 @@ pub enum Action {
     SetViscosity { viscosity: ViscosityParams },
     /// Replace the time-step parameters.
     SetTimeStep { time_step: TimeStepParams },
-    /// Start over: rebuild the simulation from `scene`, or, without one, from the current
-    /// scene (which keeps parameter and gravity changes made since; the viewer's `r` key
-    /// sends the scene as loaded instead). Time and step count restart at 0; shaking, the pointer, poured fluid and drawn
-    /// walls are gone. The outcome counts every old fluid particle as removed and every new
+    /// Start over: rebuild the simulation from `scene`, or, without one, from the current scene
+    /// (which keeps parameter and gravity changes made since; the viewer's `r` key sends the scene
+    /// as loaded instead). Time and step count restart at 0; shaking, the pointer, poured fluid and
+    /// drawn walls are gone. The outcome counts every old fluid particle as removed and every new
     /// one as added.
     Reset {
         #[serde(default, skip_serializing_if = "Option::is_none")]

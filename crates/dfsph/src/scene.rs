@@ -621,7 +621,8 @@ impl Scene {
             ));
         }
 
-        // Cells of side d: a pair closer than d lies in the same or a neighbouring cell. The positions are inside the tank, whose cell count the radius check bounds.
+        // Cells of side d: a pair closer than d lies in the same or a neighbouring cell. The
+        // positions are inside the tank, whose cell count the radius check bounds.
         let cell = |p: Point| {
             (
                 ((p[0] - self.tank.min[0]) / d).floor() as i64,
