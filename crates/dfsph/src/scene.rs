@@ -344,6 +344,21 @@ fn invalid(key: impl Into<String>, message: impl Into<String>) -> SceneError {
     }
 }
 
+/// `v` at `key` is a finite number.
+fn finite(key: &str, v: f64) -> Result<(), SceneError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(invalid(key, format!("must be a finite number, got {v}")))
+    }
+}
+
+/// Both coordinates of `p` at `key` are finite (`key[0]`, `key[1]` in the error).
+fn point(key: &str, p: Point) -> Result<(), SceneError> {
+    finite(&format!("{key}[0]"), p[0])?;
+    finite(&format!("{key}[1]"), p[1])
+}
+
 impl Scene {
     /// Parse and validate a scene from JSON text. Keys that are absent take their defaults,
     /// which for water at rest are the settings that hold it at rest
@@ -572,13 +587,8 @@ impl Scene {
         let slack = 0.5 * d + self.tank.edge_tolerance();
         for (i, p) in list.positions.iter().enumerate() {
             let key = format!("particles.positions[{i}]");
+            point(&key, *p)?;
             for (axis, &v) in p.iter().enumerate() {
-                if !v.is_finite() {
-                    return Err(invalid(
-                        format!("{key}[{axis}]"),
-                        format!("must be a finite number, got {v}"),
-                    ));
-                }
                 let (lo, hi) = (self.tank.min[axis], self.tank.max[axis]);
                 if v < lo - slack || v > hi + slack {
                     return Err(invalid(
@@ -594,14 +604,7 @@ impl Scene {
         }
         for (i, v) in list.velocities.iter().enumerate() {
             let key = format!("particles.velocities[{i}]");
-            for (axis, &c) in v.iter().enumerate() {
-                if !c.is_finite() {
-                    return Err(invalid(
-                        format!("{key}[{axis}]"),
-                        format!("must be a finite number, got {c}"),
-                    ));
-                }
-            }
+            point(&key, *v)?;
             let speed = v[0].hypot(v[1]);
             if speed > MAX_INITIAL_SPEED {
                 return Err(invalid(
@@ -712,13 +715,6 @@ impl Scene {
     /// Check every value for being finite and physically possible. Called by
     /// [`Scene::from_json`]; call it yourself on scenes built in code.
     pub fn validate(&self) -> Result<(), SceneError> {
-        let finite = |key: &str, v: f64| -> Result<(), SceneError> {
-            if v.is_finite() {
-                Ok(())
-            } else {
-                Err(invalid(key, format!("must be a finite number, got {v}")))
-            }
-        };
         let positive = |key: &str, v: f64| -> Result<(), SceneError> {
             finite(key, v)?;
             if v > 0.0 {
@@ -727,11 +723,6 @@ impl Scene {
                 Err(invalid(key, format!("must be greater than 0, got {v}")))
             }
         };
-        let point = |key: &str, p: Point| -> Result<(), SceneError> {
-            finite(&format!("{key}[0]"), p[0])?;
-            finite(&format!("{key}[1]"), p[1])
-        };
-
         positive("particle_radius", self.particle_radius)?;
         positive("rest_density", self.rest_density)?;
         if !(MIN_REST_DENSITY..=MAX_REST_DENSITY).contains(&self.rest_density) {
