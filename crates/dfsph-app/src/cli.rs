@@ -323,42 +323,20 @@ mod tests {
 
     #[test]
     fn formats_are_comma_separated() {
-        let cli = Cli::try_parse_from([
-            "dfsph2d",
-            "run",
-            "drop",
-            "--until",
-            "1",
-            "--out",
-            "o",
-            "--format",
-            "csv,vtk,png",
-        ])
-        .unwrap();
-        let Some(Command::Run(args)) = cli.command else {
-            panic!("expected run");
+        let parse = |formats: &str| {
+            let cli = Cli::try_parse_from([
+                "dfsph2d", "run", "drop", "--until", "1", "--out", "o", "--format", formats,
+            ])?;
+            let Some(Command::Run(args)) = cli.command else {
+                panic!("expected run");
+            };
+            Ok::<_, clap::Error>(args)
         };
+        let args = parse("csv,vtk,png").unwrap();
         assert_eq!(args.format, [Format::Csv, Format::Vtk, Format::Png]);
         assert_eq!(args.every, 0.05);
-        assert!(Cli::try_parse_from([
-            "dfsph2d", "run", "drop", "--until", "1", "--out", "o", "--format", "csv,avi",
-        ])
-        .is_err());
-        let cli = Cli::try_parse_from([
-            "dfsph2d",
-            "run",
-            "drop",
-            "--until",
-            "1",
-            "--out",
-            "o",
-            "--format",
-            "png,gif,mp4",
-        ])
-        .unwrap();
-        let Some(Command::Run(args)) = cli.command else {
-            panic!("expected run");
-        };
+        assert!(parse("csv,avi").is_err());
+        let args = parse("png,gif,mp4").unwrap();
         assert_eq!(args.format, [Format::Png, Format::Gif, Format::Mp4]);
     }
 }

@@ -60,6 +60,20 @@ pub fn scene_keys(count: usize) -> Option<String> {
     }
 }
 
+/// The keys that load the built-in scenes, in [`BUILTIN_SCENES`]'s order (those past its
+/// end do nothing).
+const SCENE_KEYS: [Key; 9] = [
+    Key::Num1,
+    Key::Num2,
+    Key::Num3,
+    Key::Num4,
+    Key::Num5,
+    Key::Num6,
+    Key::Num7,
+    Key::Num8,
+    Key::Num9,
+];
+
 /// The help overlay's lines: [`KEY_HELP`] with the built-in scenes' keys after `R`.
 pub fn key_help() -> Vec<(String, &'static str)> {
     let mut lines: Vec<(String, &'static str)> =
@@ -306,18 +320,7 @@ impl InputMapper {
         if input.key_pressed(Key::R) {
             out.push(Command::Reset);
         }
-        const NUMBERS: [Key; 9] = [
-            Key::Num1,
-            Key::Num2,
-            Key::Num3,
-            Key::Num4,
-            Key::Num5,
-            Key::Num6,
-            Key::Num7,
-            Key::Num8,
-            Key::Num9,
-        ];
-        for (i, key) in NUMBERS.iter().enumerate() {
+        for (i, key) in SCENE_KEYS.iter().enumerate() {
             if i < BUILTIN_SCENES.len() && input.key_pressed(*key) {
                 out.push(Command::LoadScene(i));
             }
@@ -898,18 +901,7 @@ mod tests {
         // The key after the last scene does nothing.
         if BUILTIN_SCENES.len() < 9 {
             let mut h = Harness::new();
-            let keys = [
-                Key::Num1,
-                Key::Num2,
-                Key::Num3,
-                Key::Num4,
-                Key::Num5,
-                Key::Num6,
-                Key::Num7,
-                Key::Num8,
-                Key::Num9,
-            ];
-            let next = keys[BUILTIN_SCENES.len()];
+            let next = SCENE_KEYS[BUILTIN_SCENES.len()];
             assert_eq!(h.frame(vec![key(next, true)]), vec![]);
         }
     }
