@@ -151,7 +151,6 @@ fn jacobi_solve(
         &mut scratch.previous_delta,
         &mut scratch.rate,
         &mut scratch.previous_rate,
-        &mut scratch.warm,
     ] {
         v.resize(n, 0.0);
     }
