@@ -14,7 +14,7 @@ use std::process::{Command, Stdio};
 use std::thread::sleep;
 use std::time::{Duration, Instant};
 
-use common::xvfb::{focus, missing_tools, xdotool, KillOnDrop, Xvfb};
+use common::xvfb::{find_window, focus, missing_tools, xdotool, KillOnDrop, Xvfb};
 use dfsph::Scene;
 
 /// What the viewer prints when it cannot connect to the X server; such a start is tried
@@ -55,7 +55,7 @@ fn view(display: &str, scene: &Path, exit_after: f64, dir: &Path, cwd: &Path, ke
             .expect("starting dfsph2d view");
         let mut viewer = KillOnDrop(child, "dfsph2d view");
         if !keys.is_empty() {
-            if let Some(wid) = find_window(display, &mut viewer) {
+            if let Ok(wid) = find_window(display, &mut viewer) {
                 focus(display, &wid);
                 // Held a moment each: a chord sent at once (`xdotool key ctrl+s`) reached
                 // the window without its modifier.
@@ -85,22 +85,6 @@ fn view(display: &str, scene: &Path, exit_after: f64, dir: &Path, cwd: &Path, ke
             panic!("dfsph2d view failed: {status}\n{log}");
         }
         sleep(Duration::from_millis(500));
-    }
-}
-
-/// The viewer's window once it is mapped; `None` if the viewer exited first.
-fn find_window(display: &str, viewer: &mut KillOnDrop) -> Option<String> {
-    let deadline = Instant::now() + Duration::from_secs(60);
-    loop {
-        let found = xdotool(display, &["search", "--onlyvisible", "--name", "dfsph2d"]);
-        if let Some(w) = found.lines().next() {
-            return Some(w.trim().to_string());
-        }
-        if let Ok(Some(_)) = viewer.0.try_wait() {
-            return None;
-        }
-        assert!(Instant::now() < deadline, "no dfsph2d window appeared");
-        sleep(Duration::from_millis(100));
     }
 }
 

@@ -30,7 +30,7 @@ use std::process::Command;
 use std::thread::sleep;
 use std::time::{Duration, Instant};
 
-use common::xvfb::{focus, missing_tools, xdotool, KillOnDrop, Xvfb};
+use common::xvfb::{find_window, focus, missing_tools, xdotool, KillOnDrop, Xvfb};
 
 const SCENE: &str = "hydrostatic";
 /// Wall time each key is held on the first try, s.
@@ -91,7 +91,12 @@ fn try_run_viewer(display: &str, dir: &Path, hold_s: Option<f64>) -> Result<(), 
     let mut viewer = KillOnDrop(child, "dfsph2d view");
 
     if let Some(hold) = hold_s {
-        let wid = find_window(display, &mut viewer, dir)?;
+        let wid = find_window(display, &mut viewer).map_err(|status| {
+            format!(
+                "the viewer exited before its window appeared: {status}; {}",
+                log_of(dir)
+            )
+        })?;
         for key in ["d", "a"] {
             focus(display, &wid);
             xdotool(display, &["keydown", key]);
@@ -125,26 +130,6 @@ fn try_run_viewer(display: &str, dir: &Path, hold_s: Option<f64>) -> Result<(), 
         return Err(format!("dfsph2d view failed: {status}; {}", log_of(dir)));
     }
     Ok(())
-}
-
-/// The viewer's window once it is mapped. (`xdotool search --sync` would wait forever for a
-/// viewer that failed to start, so this polls, watching the viewer.)
-fn find_window(display: &str, viewer: &mut KillOnDrop, dir: &Path) -> Result<String, String> {
-    let deadline = Instant::now() + Duration::from_secs(60);
-    loop {
-        let found = xdotool(display, &["search", "--onlyvisible", "--name", "dfsph2d"]);
-        if let Some(w) = found.lines().next() {
-            return Ok(w.trim().to_string());
-        }
-        if let Ok(Some(status)) = viewer.0.try_wait() {
-            return Err(format!(
-                "the viewer exited before its window appeared: {status}; {}",
-                log_of(dir)
-            ));
-        }
-        assert!(Instant::now() < deadline, "no dfsph2d window appeared");
-        sleep(Duration::from_millis(100));
-    }
 }
 
 fn log_of(dir: &Path) -> String {

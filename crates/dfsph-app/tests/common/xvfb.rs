@@ -142,3 +142,24 @@ pub fn focus(display: &str, wid: &str) {
     }
     panic!("could not focus window {wid}");
 }
+
+/// The viewer's window once it is mapped, or how the viewer exited first. (`xdotool search
+/// --sync` would wait forever for a viewer that failed to start, so this polls, watching the
+/// viewer.)
+pub fn find_window(
+    display: &str,
+    viewer: &mut KillOnDrop,
+) -> Result<String, std::process::ExitStatus> {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        let found = xdotool(display, &["search", "--onlyvisible", "--name", "dfsph2d"]);
+        if let Some(w) = found.lines().next() {
+            return Ok(w.trim().to_string());
+        }
+        if let Ok(Some(status)) = viewer.0.try_wait() {
+            return Err(status);
+        }
+        assert!(Instant::now() < deadline, "no dfsph2d window appeared");
+        sleep(Duration::from_millis(100));
+    }
+}
