@@ -292,7 +292,7 @@ struct Running {
 impl Running {
     /// Close ffmpeg's input, wait for it and return its exit status and its last words.
     fn wait(&mut self) -> (std::io::Result<std::process::ExitStatus>, String) {
-        drop(self.stdin.take());
+        self.stdin = None;
         let status = self.child.wait();
         let said = self
             .stderr

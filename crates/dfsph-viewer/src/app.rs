@@ -6,7 +6,7 @@ use std::collections::VecDeque;
 use std::io::Write as _;
 use std::path::PathBuf;
 use std::rc::Rc;
-use std::time::{Duration, Instant};
+use web_time::{Duration, Instant};
 
 use anyhow::{anyhow, Context as _};
 use dfsph::recording::{End, Header, Recorder};
@@ -39,6 +39,8 @@ const HUD_SIZE_GUESS: egui::Vec2 = vec2(300.0, 170.0);
 pub type Failures = Rc<RefCell<Vec<anyhow::Error>>>;
 
 /// A requested screenshot, answered by the next `Event::Screenshot`.
+// The page draws its screenshots itself (no `Event::Screenshot` on the web): only `Exit` there.
+#[cfg_attr(target_arch = "wasm32", allow(dead_code))]
 enum ShotPurpose {
     /// F12: save to this file.
     File(PathBuf),
@@ -72,7 +74,7 @@ impl SessionRecorder {
     /// budget, as the simulation will run it).
     pub fn create(path: &std::path::Path, scene: &Scene) -> anyhow::Result<Self> {
         let scene = budgeted_scene(scene.clone(), scene.max_particles);
-        let header = Header::new("view", rayon::current_num_threads(), &scene);
+        let header = Header::new("view", solver_threads(), &scene);
         let file = std::fs::File::create(path)
             .with_context(|| format!("cannot create recording `{}`", path.display()))?;
         let recorder = Recorder::new(std::io::BufWriter::new(file), &header)
@@ -82,6 +84,36 @@ impl SessionRecorder {
             recorder,
         })
     }
+}
+
+/// What a frame showed, for an embedding page's hook (`window.dfsph2d.state()`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameReport {
+    /// The built-in or loaded scene's name.
+    pub scene: String,
+    /// Fluid particles.
+    pub particles: usize,
+    /// Simulated time, s.
+    pub time: f64,
+    /// Mean x of the fluid particles, m.
+    pub mean_x: f64,
+    /// Steps taken since the scene was loaded.
+    pub steps: u64,
+    /// Simulated seconds per wall second (0 while paused).
+    pub realtime: f64,
+    /// Frames drawn per second.
+    pub fps: f64,
+}
+
+/// A frame observer ([`ViewerApp::on_frame`]).
+type FrameObserver = Box<dyn FnMut(&FrameReport)>;
+
+/// Threads the solver steps on: rayon's pool, or the page's one thread in the browser.
+fn solver_threads() -> usize {
+    #[cfg(not(target_arch = "wasm32"))]
+    return rayon::current_num_threads();
+    #[cfg(target_arch = "wasm32")]
+    return 1;
 }
 
 /// The viewer.
@@ -137,6 +169,8 @@ pub struct ViewerApp {
     recorder: Option<SessionRecorder>,
     /// The Record button's video.
     video: VideoRecorder,
+    /// Told what each frame showed ([`Self::on_frame`]).
+    observer: Option<FrameObserver>,
 }
 
 impl ViewerApp {
@@ -155,7 +189,8 @@ impl ViewerApp {
         opts: ViewerOptions,
         failures: Failures,
     ) -> anyhow::Result<Self> {
-        ctx.set_visuals(egui::Visuals::dark());
+        // Dark whatever the system prefers (a browser reports its theme and egui would follow).
+        ctx.set_theme(egui::Theme::Dark);
         let requested_max_particles = opts.scene.max_particles;
         let loaded = opts.scene.clone();
         let sim = build_simulation(opts.scene, requested_max_particles)?;
@@ -203,6 +238,7 @@ impl ViewerApp {
             session_steps: 0,
             recorder: None,
             video: VideoRecorder::default(),
+            observer: None,
         })
     }
 
@@ -230,6 +266,39 @@ impl ViewerApp {
         }
         self.recorder = recorder;
         self
+    }
+
+    /// Call `observer` after every frame with what it showed.
+    pub fn on_frame(mut self, observer: impl FnMut(&FrameReport) + 'static) -> Self {
+        self.observer = Some(Box::new(observer));
+        self
+    }
+
+    /// Show `note` in the status line (why a page's link was not used, say).
+    pub fn with_note(mut self, note: Option<String>) -> Self {
+        if let Some(note) = note {
+            self.set_status(note);
+        }
+        self
+    }
+
+    /// What the simulation shows now, for the frame observer.
+    fn frame_report(&self) -> FrameReport {
+        let positions = self.sim.positions();
+        let sum: f64 = positions.iter().map(|p| f64::from(p.x)).sum();
+        FrameReport {
+            scene: self.sim.scene().name.clone(),
+            particles: self.sim.fluid_count(),
+            time: self.sim.time(),
+            mean_x: sum / positions.len().max(1) as f64,
+            steps: self.sim.step_count(),
+            realtime: if self.paused {
+                0.0
+            } else {
+                self.sim_rate.get()
+            },
+            fps: self.fps.get(),
+        }
     }
 
     /// Append an applied action to the recording; on a write error, report it once and stop
@@ -303,27 +372,45 @@ impl ViewerApp {
         loaded
     }
 
-    /// Open a scene file; a bad one leaves the simulation as it is and says why.
-    fn open_file(&mut self, ctx: &egui::Context, path: &std::path::Path) {
-        match scene_file::read_scene(path) {
+    /// Load a scene file the user opened; a bad one leaves the simulation as it is and says
+    /// why.
+    fn open_scene(&mut self, ctx: &egui::Context, opened: scene_file::Opened) {
+        match opened.scene {
             Ok(scene) => {
                 if self.load_as_loaded(ctx, scene) {
-                    self.set_status(format!("opened {}", path.display()));
+                    self.set_status(format!("opened {}", opened.name));
                 }
             }
             Err(e) => self.set_status(format!("cannot open: {e:#}")),
         }
     }
 
-    /// Save the state as `scene-<time>.json` in the current directory.
+    /// Save the state as `scene-<time>.json`: in the current directory, or as a download in
+    /// the browser.
     fn save_scene(&mut self) {
-        let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
         let saved = scene_file::saved_scene(&self.sim, self.requested_max_particles)
-            .and_then(|scene| scene_file::save_timestamped(&dir, &scene));
+            .and_then(|scene| scene_file::save_state(&scene));
         match saved {
-            Ok(path) => self.set_status(format!("saved {}", path.display())),
+            Ok(said) => self.set_status(said),
             Err(e) => self.set_status(format!("not saved: {e:#}")),
         }
+    }
+
+    /// Put a link to the scene being played in the address bar and on the clipboard.
+    fn share_link(&mut self, ctx: &egui::Context) {
+        let scene = crate::share::shared_scene(&self.sim, &self.loaded);
+        let fragment = crate::share::fragment(&scene);
+        #[cfg(target_arch = "wasm32")]
+        let link = crate::web::set_location_hash(&fragment).unwrap_or(format!("#{fragment}"));
+        #[cfg(not(target_arch = "wasm32"))]
+        let link = format!("#{fragment}");
+        let said = format!(
+            "link copied ({} characters): it opens this scene with its walls and settings, \
+             water as it started",
+            link.len()
+        );
+        ctx.copy_text(link);
+        self.set_status(said);
     }
 
     fn apply(&mut self, ctx: &egui::Context, cmd: Command) {
@@ -368,20 +455,42 @@ impl ViewerApp {
                 }
             }
             Command::SaveScene => self.save_scene(),
-            Command::OpenScene => self.opener.open(),
+            Command::OpenScene => {
+                if let Err(e) = self.opener.open() {
+                    self.set_status(format!("{e:#}"));
+                }
+            }
+            Command::ShareLink => self.share_link(ctx),
             Command::SetParticleRadius(r) => {
                 let mut scene = self.sim.scene().clone();
                 scene.particle_radius = r;
                 self.load_other(ctx, scene, self.requested_max_particles);
             }
             Command::CycleColoring => self.coloring = self.coloring.next(),
+            #[cfg(not(target_arch = "wasm32"))]
             Command::Screenshot => {
                 let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
                 self.shots
                     .push_back(ShotPurpose::File(export::timestamped_png(&dir)));
                 ctx.send_viewport_cmd(ViewportCommand::Screenshot);
             }
+            // The page cannot read its own WebGL canvas back: the picture is drawn by the
+            // CPU rasteriser of `dfsph2d run --format png` and downloaded.
+            #[cfg(target_arch = "wasm32")]
+            Command::Screenshot => {
+                let said = match export::download_rendered_png(&self.sim) {
+                    Ok(name) => format!("downloaded {name}"),
+                    Err(e) => format!("screenshot failed: {e:#}"),
+                };
+                self.set_status(said);
+            }
             Command::ToggleHelp => self.show_help = !self.show_help,
+            #[cfg(target_arch = "wasm32")]
+            Command::ToggleRecording => self.set_status(
+                "video recording is in the desktop viewer (dfsph2d view, V) and in \
+                 `dfsph2d run SCENE --format gif,mp4`",
+            ),
+            #[cfg(not(target_arch = "wasm32"))]
             Command::ToggleRecording => {
                 let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
                 let said = self.video.toggle(&self.sim, &dir);
@@ -669,10 +778,10 @@ impl eframe::App for ViewerApp {
             self.apply(ctx, cmd);
         }
         // A scene file picked in the dialog or dropped on the window.
-        let mut opened = ctx.input(scene_file::dropped_paths);
+        let mut opened = ctx.input(scene_file::dropped_scenes);
         opened.extend(self.opener.update(ctx));
-        for path in opened {
-            self.open_file(ctx, &path);
+        for file in opened {
+            self.open_scene(ctx, file);
         }
         // A reset or a new scene may have changed the world bounds.
         let (lo, hi) = render::world_bounds(&self.sim);
@@ -691,6 +800,12 @@ impl eframe::App for ViewerApp {
             frame_seconds as f32,
         );
         hud::help_window(ctx, &mut self.show_help);
+        if self.observer.is_some() {
+            let report = self.frame_report();
+            if let Some(observe) = &mut self.observer {
+                observe(&report);
+            }
+        }
         // The simulation steps while this frame is drawn, until the next one begins.
         if !self.paused && !exiting {
             self.sim.send_away(self.time_scale);

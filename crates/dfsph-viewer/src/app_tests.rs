@@ -90,7 +90,7 @@ fn reset_after_opening_a_saved_scene_brings_back_its_walls_and_water() {
 
     // Open it over another scene, change things, reset.
     let (ctx, mut app) = app(coarse("hydrostatic"));
-    app.open_file(&ctx, &path);
+    app.open_scene(&ctx, scene_file::Opened::from_path(&path));
     assert_eq!(app.sim.fluid_count(), sim.fluid_count());
     let walls = drawn_wall_particles(&sim);
     // The drawn wall is one of the saved scene's obstacles now.
@@ -115,7 +115,7 @@ fn reset_after_opening_a_saved_scene_brings_back_its_walls_and_water() {
     std::fs::write(&bad, r#"{"gravity": [0, -1e9]}"#).unwrap();
     app.apply(&ctx, Command::Step);
     let steps = app.sim.step_count();
-    app.open_file(&ctx, &bad);
+    app.open_scene(&ctx, scene_file::Opened::from_path(&bad));
     assert_eq!(app.sim.step_count(), steps);
     let status = app.status.as_ref().map(|s| s.0.clone()).unwrap_or_default();
     assert!(

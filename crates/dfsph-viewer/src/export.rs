@@ -1,7 +1,7 @@
 //! Files the viewer writes: particle CSV, PNG screenshots, and the session record.
 
 use std::path::{Path, PathBuf};
-use std::time::{SystemTime, UNIX_EPOCH};
+use web_time::{SystemTime, UNIX_EPOCH};
 
 use anyhow::Context as _;
 use dfsph::Snapshot;
@@ -52,6 +52,29 @@ pub fn timestamped_file(dir: &Path, ext: &str) -> PathBuf {
         k += 1;
     }
     path
+}
+
+/// The browser's screenshot: the simulation drawn by `dfsph2d run`'s CPU rasteriser, with its
+/// time stamped, downloaded as `dfsph2d-YYYYMMDD-HHMMSS.png`. Returns the name.
+#[cfg(target_arch = "wasm32")]
+pub fn download_rendered_png(sim: &dfsph::Simulation) -> anyhow::Result<String> {
+    use dfsph_io::render::{render_frame, stamp_time, RenderGeometry, RenderOptions};
+    let options = RenderOptions {
+        width: crate::video::FRAME_WIDTH,
+        speed_max: dfsph_io::render::speed_scale(sim.scene()),
+    };
+    let mut picture = render_frame(&RenderGeometry::of(sim), &sim.snapshot(), &options)?;
+    stamp_time(&mut picture, sim.time(), 2);
+    let png = picture
+        .encode_png()
+        .map_err(|e| anyhow::anyhow!("cannot encode the PNG: {e}"))?;
+    let secs = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let name = format!("dfsph2d-{}.png", utc_stamp(secs));
+    crate::web::download(&name, "image/png", &png)
+        .map_err(|e| anyhow::anyhow!("the browser refused the download: {e}"))?;
+    Ok(name)
 }
 
 /// `YYYYMMDD-HHMMSS` for seconds since the Unix epoch, UTC.

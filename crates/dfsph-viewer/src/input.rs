@@ -122,6 +122,8 @@ pub enum Command {
     SaveScene,
     /// Show the dialog that opens a scene file.
     OpenScene,
+    /// Put a link that reproduces the scene in the address bar and on the clipboard.
+    ShareLink,
     /// Multiply the view's zoom by `factor`, keeping the world point `about` (m) where it is
     /// on the screen.
     ZoomView { factor: f32, about: Vec2 },
@@ -161,6 +163,50 @@ pub enum Tool {
     Pan,
 }
 
+/// What the primary button (a left drag, a finger on a touch screen) does. The other buttons
+/// and the keys keep their own tools whatever is chosen here; on a phone, where one finger is
+/// all there is, this is how push, pour, walls, erasing and panning are reached.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PrimaryTool {
+    /// Pull water towards the pointer.
+    #[default]
+    Pull,
+    /// Push water away.
+    Push,
+    /// Pour water.
+    Pour,
+    /// Draw a wall (added when the button or finger is lifted).
+    Wall,
+    /// Erase water and drawn walls.
+    Erase,
+    /// Move the view.
+    Pan,
+}
+
+impl PrimaryTool {
+    /// Every tool, in the order the panel shows them.
+    pub const ALL: [PrimaryTool; 6] = [
+        PrimaryTool::Pull,
+        PrimaryTool::Push,
+        PrimaryTool::Pour,
+        PrimaryTool::Wall,
+        PrimaryTool::Erase,
+        PrimaryTool::Pan,
+    ];
+
+    /// The panel's name for it.
+    pub fn label(self) -> &'static str {
+        match self {
+            PrimaryTool::Pull => "pull",
+            PrimaryTool::Push => "push",
+            PrimaryTool::Pour => "pour",
+            PrimaryTool::Wall => "wall",
+            PrimaryTool::Erase => "erase",
+            PrimaryTool::Pan => "pan",
+        }
+    }
+}
+
 /// Turns egui input into commands, remembering what is held between frames.
 #[derive(Clone, Debug)]
 pub struct InputMapper {
@@ -172,6 +218,10 @@ pub struct InputMapper {
     pub radius_limits: (f32, f32),
     /// Distance between recorded points of a drawn wall, m.
     pub wall_point_spacing: f32,
+    /// What the primary button does (left drag, a finger).
+    pub primary_tool: PrimaryTool,
+    /// The side panel's shake buttons held: -1 left, 1 right, 0 none (set each frame).
+    pub panel_shake: f32,
     /// Magnitude of gravity, m/s².
     gravity_magnitude: f32,
     /// Gravity's angle from straight down, degrees (positive tips it towards +x).
@@ -196,6 +246,8 @@ impl Default for InputMapper {
             pointer_strength: MAX_POINTER_ACCELERATION,
             radius_limits: (0.02, 2.0),
             wall_point_spacing: 0.02,
+            primary_tool: PrimaryTool::Pull,
+            panel_shake: 0.0,
             gravity_magnitude: 9.81,
             tilt_deg: 0.0,
             shake: 0.0,
@@ -281,12 +333,13 @@ impl InputMapper {
             // A space released while a text field had the keys must not pause later.
             self.space_held = None;
         }
-        let shake = if view.keyboard {
+        let keys = if view.keyboard {
             let held = |a: Key, b: Key| input.key_down(a) || input.key_down(b);
             f32::from(held(Key::D, Key::ArrowRight)) - f32::from(held(Key::A, Key::ArrowLeft))
         } else {
             0.0
         };
+        let shake = (keys + self.panel_shake).clamp(-1.0, 1.0);
         if shake != self.shake {
             self.shake = shake;
             out.push(Command::Sim(Action::ShakeTank { direction: shake }));
@@ -402,10 +455,11 @@ impl InputMapper {
 
         // Panning: middle drag, or left drag with Space held. It takes the pointer from the
         // tools (a wall being drawn keeps it).
-        let space_pan = self.space_held.is_some() && primary;
+        let space_pan =
+            primary && (self.space_held.is_some() || self.primary_tool == PrimaryTool::Pan);
         if self.wall.is_none() && (middle || space_pan) {
             self.tool = Tool::Pan;
-            if space_pan {
+            if space_pan && self.space_held.is_some() {
                 self.space_held = Some(true);
             }
             // From where the button went down, not from last frame's pointer: on a slow
@@ -435,13 +489,14 @@ impl InputMapper {
             self.release(out);
             return;
         }
-        if primary && p.primary_pressed() && input.modifiers.shift {
+        let tool = self.primary_tool;
+        if primary && p.primary_pressed() && (input.modifiers.shift || tool == PrimaryTool::Wall) {
             self.wall = Some(vec![at]);
             self.tool = Tool::Wall;
             self.release(out);
             return;
         }
-        if primary && keys(Key::X) {
+        if primary && (keys(Key::X) || tool == PrimaryTool::Erase) {
             self.tool = Tool::Erase;
             self.release(out);
             out.push(Command::Sim(Action::Erase {
@@ -450,7 +505,8 @@ impl InputMapper {
             }));
             return;
         }
-        if keys(Key::F) {
+        let pour_by_button = primary && tool == PrimaryTool::Pour;
+        if keys(Key::F) || pour_by_button {
             self.tool = Tool::Pour;
             out.push(Command::Sim(Action::Emit {
                 at,
@@ -458,14 +514,17 @@ impl InputMapper {
                 velocity: Vec2::new(0.0, -POUR_SPEED),
             }));
         }
-        if primary || secondary {
-            self.tool = if primary { Tool::Pull } else { Tool::Push };
+        // The primary button pulls (or pushes, when that is its tool); the secondary pushes.
+        let pulling = primary && tool == PrimaryTool::Pull;
+        let pushing = secondary || (primary && tool == PrimaryTool::Push);
+        if pulling || pushing {
+            self.tool = if pulling { Tool::Pull } else { Tool::Push };
             let strength = self.pointer_strength.clamp(0.0, MAX_POINTER_ACCELERATION);
             self.pointer_active = true;
             out.push(Command::Sim(Action::Push {
                 at,
                 radius: self.tool_radius,
-                strength: if primary { -strength } else { strength },
+                strength: if pulling { -strength } else { strength },
             }));
         } else {
             self.release(out);
@@ -548,6 +607,18 @@ mod tests {
 
     fn shake(direction: f32) -> Command {
         Command::Sim(Action::ShakeTank { direction })
+    }
+
+    #[test]
+    fn the_panels_shake_buttons_shake_like_the_keys() {
+        let mut h = Harness::new();
+        h.mapper.panel_shake = -1.0;
+        assert_eq!(h.frame(vec![]), vec![shake(-1.0)]);
+        assert_eq!(h.frame(vec![]), vec![]);
+        // A key the other way cancels it, as A and D do.
+        assert_eq!(h.frame(vec![key(Key::D, true)]), vec![shake(0.0)]);
+        h.mapper.panel_shake = 0.0;
+        assert_eq!(h.frame(vec![]), vec![shake(1.0)]);
     }
 
     #[test]
@@ -701,6 +772,87 @@ mod tests {
         // Leaving the view lets go too.
         h.pointer = None;
         assert_eq!(h.frame(vec![]), vec![Command::Sim(Action::ReleasePointer)]);
+    }
+
+    /// One finger down, then up: what a touch screen sends through egui (a touch becomes the
+    /// primary button), whatever the primary tool is.
+    fn press_and_release(h: &mut Harness) -> (Vec<Command>, Vec<Command>, Vec<Command>) {
+        let down = h.frame(vec![
+            moved(),
+            button(PointerButton::Primary, true, Modifiers::NONE),
+        ]);
+        h.pointer = Some(Vec2::new(1.4, 0.6));
+        let drag = h.frame(vec![moved_to(140.0, 120.0)]);
+        let up = h.frame(vec![button(PointerButton::Primary, false, Modifiers::NONE)]);
+        h.pointer = Some(Vec2::new(1.0, 0.5));
+        (down, drag, up)
+    }
+
+    #[test]
+    fn the_primary_tool_gives_one_finger_every_tool() {
+        let mut h = Harness::new();
+        let s = MAX_POINTER_ACCELERATION;
+        h.mapper.primary_tool = PrimaryTool::Push;
+        let (down, _, up) = press_and_release(&mut h);
+        assert!(
+            matches!(down.as_slice(), [Command::Sim(Action::Push { strength, .. })] if *strength == s),
+            "{down:?}"
+        );
+        assert_eq!(up, vec![Command::Sim(Action::ReleasePointer)]);
+
+        h.mapper.primary_tool = PrimaryTool::Pour;
+        let (down, _, _) = press_and_release(&mut h);
+        assert!(
+            matches!(down.as_slice(), [Command::Sim(Action::Emit { .. })]),
+            "{down:?}"
+        );
+        assert_eq!(
+            h.mapper.tool(),
+            Tool::Idle,
+            "lifting the finger stops the pour"
+        );
+
+        h.mapper.primary_tool = PrimaryTool::Wall;
+        let (down, _, up) = press_and_release(&mut h);
+        assert_eq!(down, vec![]);
+        assert!(
+            matches!(up.as_slice(), [Command::Sim(Action::AddWall { polyline })] if polyline.len() == 2),
+            "{up:?}"
+        );
+
+        h.mapper.primary_tool = PrimaryTool::Erase;
+        let (down, _, _) = press_and_release(&mut h);
+        assert!(
+            matches!(down.as_slice(), [Command::Sim(Action::Erase { .. })]),
+            "{down:?}"
+        );
+
+        h.mapper.primary_tool = PrimaryTool::Pan;
+        let (_, drag, _) = press_and_release(&mut h);
+        assert_eq!(
+            drag,
+            vec![Command::PanView {
+                delta: egui::vec2(40.0, 20.0)
+            }]
+        );
+        // Panning with the tool leaves Space alone: a tap still pauses.
+        assert_eq!(h.frame(vec![key(Key::Space, true)]), vec![]);
+        assert_eq!(
+            h.frame(vec![key(Key::Space, false)]),
+            vec![Command::TogglePause]
+        );
+
+        // The right button keeps pushing whatever the primary tool is.
+        h.mapper.primary_tool = PrimaryTool::Pour;
+        let out = h.frame(vec![button(
+            PointerButton::Secondary,
+            true,
+            Modifiers::NONE,
+        )]);
+        assert!(
+            matches!(out.as_slice(), [Command::Sim(Action::Push { strength, .. })] if *strength == s),
+            "{out:?}"
+        );
     }
 
     fn wheel(modifiers: Modifiers) -> Event {

@@ -7,8 +7,22 @@ use dfsph::scene::{Method, BUILTIN_SCENES};
 use dfsph::{Action, Simulation};
 use eframe::egui::{self, Slider};
 
-use crate::input::{Command, InputMapper, MAX_TILT_DEG};
+use crate::input::{Command, InputMapper, PrimaryTool, MAX_TILT_DEG};
 use crate::render::{ColorScale, Coloring};
+
+/// Where the buttons put their files, in their hover texts.
+#[cfg(not(target_arch = "wasm32"))]
+const SAVE_HINT: &str = "Ctrl+S: the state as scene-<time>.json in the current directory";
+#[cfg(target_arch = "wasm32")]
+const SAVE_HINT: &str = "Ctrl+S: download the state as scene-<time>.json";
+#[cfg(not(target_arch = "wasm32"))]
+const SCREENSHOT_HINT: &str = "F12: the window as dfsph2d-<time>.png in the current directory";
+#[cfg(target_arch = "wasm32")]
+const SCREENSHOT_HINT: &str = "F12: download the water as dfsph2d-<time>.png";
+#[cfg(not(target_arch = "wasm32"))]
+const RECORD_HINT: &str = "A GIF (and an MP4 with ffmpeg) of the simulation, at simulated speed, into the current directory (V)";
+#[cfg(target_arch = "wasm32")]
+const RECORD_HINT: &str = "Video recording is in the desktop viewer (dfsph2d view)";
 
 /// What the side panel reads and edits.
 pub struct PanelState<'a> {
@@ -62,15 +76,19 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
             }
         });
         ui.horizontal(|ui| {
-            if ui.button("Screenshot").clicked() {
-                out.push(Command::Screenshot);
-            }
-            let record = if st.recording { "⏹ Stop" } else { "⏺ Record" };
             if ui
-                .button(record)
-                .on_hover_text("A GIF (and an MP4 with ffmpeg) of the simulation, at simulated speed, into the current directory (V)")
+                .button("Screenshot")
+                .on_hover_text(SCREENSHOT_HINT)
                 .clicked()
             {
+                out.push(Command::Screenshot);
+            }
+            let record = if st.recording {
+                "⏹ Stop"
+            } else {
+                "⏺ Record"
+            };
+            if ui.button(record).on_hover_text(RECORD_HINT).clicked() {
                 out.push(Command::ToggleRecording);
             }
             if ui.button("Help").clicked() {
@@ -85,11 +103,7 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
             }
         });
         ui.horizontal(|ui| {
-            if ui
-                .button("Save scene…")
-                .on_hover_text("Ctrl+S: the state as scene-<time>.json in the current directory")
-                .clicked()
-            {
+            if ui.button("Save scene…").on_hover_text(SAVE_HINT).clicked() {
                 out.push(Command::SaveScene);
             }
             if ui
@@ -98,6 +112,17 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
                 .clicked()
             {
                 out.push(Command::OpenScene);
+            }
+            #[cfg(target_arch = "wasm32")]
+            if ui
+                .button("Copy link")
+                .on_hover_text(
+                    "A link to this scene, with its walls and settings (the water as it \
+                     started), in the address bar and on the clipboard",
+                )
+                .clicked()
+            {
+                out.push(Command::ShareLink);
             }
         });
         if let Some(msg) = st.status {
@@ -225,6 +250,23 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
 
         ui.separator();
         ui.label(egui::RichText::new("Tools").strong());
+        ui.label("left drag / one finger:");
+        ui.horizontal_wrapped(|ui| {
+            for tool in PrimaryTool::ALL {
+                ui.selectable_value(&mut st.mapper.primary_tool, tool, tool.label());
+            }
+        });
+        ui.horizontal(|ui| {
+            // Held like the keys A and D (and the only way to shake on a touch screen).
+            let left = ui
+                .button("◀ shake")
+                .on_hover_text("Hold: shake the tank left (A)");
+            let right = ui
+                .button("shake ▶")
+                .on_hover_text("Hold: shake the tank right (D)");
+            st.mapper.panel_shake = f32::from(right.is_pointer_button_down_on())
+                - f32::from(left.is_pointer_button_down_on());
+        });
         let (lo, hi) = st.mapper.radius_limits;
         ui.add(Slider::new(&mut st.mapper.tool_radius, lo..=hi).text("tool radius (m)"));
         ui.add(

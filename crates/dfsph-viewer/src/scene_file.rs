@@ -5,12 +5,14 @@
 //! runs exactly as written.
 
 use std::path::{Path, PathBuf};
+#[cfg(not(target_arch = "wasm32"))]
 use std::sync::Arc;
-use std::time::{SystemTime, UNIX_EPOCH};
+use web_time::{SystemTime, UNIX_EPOCH};
 
 use anyhow::{anyhow, Context as _};
 use dfsph::{Scene, Simulation};
 use eframe::egui;
+#[cfg(not(target_arch = "wasm32"))]
 use egui_file_dialog::{DialogState, FileDialog};
 
 /// The particle radius slider's range, m: what the scene validator accepts for this tank
@@ -111,23 +113,86 @@ pub fn read_scene(path: &Path) -> anyhow::Result<Scene> {
     Scene::from_json(&text).map_err(|e| anyhow!("{}: {e}", path.display()))
 }
 
-/// Paths of the files dropped on the window this frame (drag and drop).
-pub fn dropped_paths(input: &egui::InputState) -> Vec<PathBuf> {
+/// A scene file the user opened (picked or dropped): its name, and the scene or why it was
+/// refused (naming the file and the key).
+pub struct Opened {
+    pub name: String,
+    pub scene: anyhow::Result<Scene>,
+}
+
+impl Opened {
+    /// A scene file read from disk.
+    pub fn from_path(path: &Path) -> Self {
+        Self {
+            name: path.display().to_string(),
+            scene: read_scene(path),
+        }
+    }
+
+    /// A scene file's contents (the browser hands over bytes, not paths).
+    pub fn from_bytes(name: &str, bytes: &[u8]) -> Self {
+        let scene = std::str::from_utf8(bytes)
+            .map_err(|_| anyhow!("{name}: not a text file"))
+            .and_then(|text| Scene::from_json(text).map_err(|e| anyhow!("{name}: {e}")));
+        Self {
+            name: name.to_string(),
+            scene,
+        }
+    }
+}
+
+/// The files dropped on the window this frame (drag and drop): by path on the desktop, by
+/// contents in the browser.
+pub fn dropped_scenes(input: &egui::InputState) -> Vec<Opened> {
     input
         .raw
         .dropped_files
         .iter()
-        .filter_map(|f| f.path.clone())
+        .filter_map(|f| match (&f.path, &f.bytes) {
+            (Some(path), _) => Some(Opened::from_path(path)),
+            (None, Some(bytes)) => Some(Opened::from_bytes(&f.name, bytes)),
+            (None, None) => None,
+        })
         .collect()
 }
 
-/// The "Open scene…" dialog: egui's own widgets (no desktop portal or GTK needed), showing
-/// directories and `.json` files.
+/// Save the state `scene` where the user finds it: `scene-<time>.json` in the current
+/// directory ([`save_timestamped`]), or a download of that name in the browser. Returns what
+/// to tell the user.
+pub fn save_state(scene: &Scene) -> anyhow::Result<String> {
+    #[cfg(not(target_arch = "wasm32"))]
+    {
+        let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
+        save_timestamped(&dir, scene).map(|path| format!("saved {}", path.display()))
+    }
+    #[cfg(target_arch = "wasm32")]
+    {
+        let secs = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs());
+        let name = format!("scene-{}.json", crate::export::utc_stamp(secs));
+        crate::web::download(
+            &name,
+            "application/json",
+            scene.to_json_compact_points().as_bytes(),
+        )
+        .map_err(|e| anyhow!("the browser refused the download: {e}"))?;
+        Ok(format!("downloaded {name}"))
+    }
+}
+
+/// The "Open scene…" dialog: on the desktop egui's own widgets (no desktop portal or GTK
+/// needed), showing directories and `.json` files; in the browser, the browser's file
+/// picker.
 pub struct SceneOpener {
+    #[cfg(not(target_arch = "wasm32"))]
     dialog: FileDialog,
+    #[cfg(target_arch = "wasm32")]
+    picker: crate::web::FilePicker,
 }
 
 impl Default for SceneOpener {
+    #[cfg(not(target_arch = "wasm32"))]
     fn default() -> Self {
         let json: Arc<dyn Fn(&Path) -> bool + Send + Sync> = Arc::new(|p: &Path| {
             p.extension()
@@ -140,12 +205,21 @@ impl Default for SceneOpener {
             .initial_directory(std::env::current_dir().unwrap_or_else(|_| PathBuf::from(".")));
         Self { dialog }
     }
+
+    #[cfg(target_arch = "wasm32")]
+    fn default() -> Self {
+        Self {
+            picker: Default::default(),
+        }
+    }
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 impl SceneOpener {
     /// Show the dialog, in the directory the viewer was started in.
-    pub fn open(&mut self) {
+    pub fn open(&mut self) -> anyhow::Result<()> {
         self.dialog.select_file();
+        Ok(())
     }
 
     /// Whether the dialog is showing.
@@ -154,9 +228,35 @@ impl SceneOpener {
     }
 
     /// Draw the dialog if it is open; the file the user picked, once.
-    pub fn update(&mut self, ctx: &egui::Context) -> Option<PathBuf> {
+    pub fn update(&mut self, ctx: &egui::Context) -> Option<Opened> {
         self.dialog.update(ctx);
-        self.dialog.take_selected()
+        self.dialog.take_selected().map(|p| Opened::from_path(&p))
+    }
+}
+
+#[cfg(target_arch = "wasm32")]
+impl SceneOpener {
+    /// Show the browser's file picker.
+    pub fn open(&mut self) -> anyhow::Result<()> {
+        self.picker
+            .open()
+            .map_err(|e| anyhow!("the browser's file picker did not open: {e}"))
+    }
+
+    /// The picker is the browser's, drawn over the page, not a part of it.
+    pub fn is_open(&self) -> bool {
+        false
+    }
+
+    /// The file picked since the last frame, if one was.
+    pub fn update(&mut self, _ctx: &egui::Context) -> Option<Opened> {
+        self.picker.take().pop().map(|(name, text)| match text {
+            Ok(text) => Opened::from_bytes(&name, text.as_bytes()),
+            Err(e) => Opened {
+                scene: Err(anyhow!("{name}: cannot read: {e}")),
+                name,
+            },
+        })
     }
 }
 
@@ -240,17 +340,44 @@ mod tests {
     }
 
     #[test]
-    fn dropped_files_are_read_from_the_frames_input() {
+    fn dropped_files_are_read_by_path_or_by_contents() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.json");
+        write_scene(&path, &coarse()).unwrap();
         let ctx = egui::Context::default();
         let raw = egui::RawInput {
-            dropped_files: vec![egui::DroppedFile {
-                path: Some(PathBuf::from("/tmp/a.json")),
-                ..Default::default()
-            }],
+            dropped_files: vec![
+                // The desktop hands over a path,
+                egui::DroppedFile {
+                    path: Some(path.clone()),
+                    ..Default::default()
+                },
+                // the browser the bytes,
+                egui::DroppedFile {
+                    name: "b.json".into(),
+                    bytes: Some(coarse().to_json().into_bytes().into()),
+                    ..Default::default()
+                },
+                // which may not be a scene.
+                egui::DroppedFile {
+                    name: "c.json".into(),
+                    bytes: Some(br#"{"particle_radius": "big"}"#.to_vec().into()),
+                    ..Default::default()
+                },
+            ],
             ..Default::default()
         };
         let mut got = Vec::new();
-        let _ = ctx.run(raw, |ctx| got = ctx.input(dropped_paths));
-        assert_eq!(got, vec![PathBuf::from("/tmp/a.json")]);
+        let _ = ctx.run(raw, |ctx| got = ctx.input(dropped_scenes));
+        assert_eq!(got.len(), 3);
+        assert_eq!(got[0].name, path.display().to_string());
+        assert_eq!(got[0].scene.as_ref().unwrap(), &coarse());
+        assert_eq!(got[1].name, "b.json");
+        assert_eq!(got[1].scene.as_ref().unwrap(), &coarse());
+        let e = format!("{:#}", got[2].scene.as_ref().unwrap_err());
+        assert!(
+            e.starts_with("c.json: ") && e.contains("particle_radius"),
+            "{e}"
+        );
     }
 }

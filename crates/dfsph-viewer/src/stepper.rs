@@ -11,18 +11,34 @@
 //! ahead of `time scale × wall time`, and what it cannot keep up with is dropped rather than
 //! owed, so a slow scene runs slower than real time instead of falling ever further behind.
 
+//!
+//! The browser has no thread to spare (the page is single-threaded): there the steps run at
+//! the start of the next frame instead ([`Stepper::bring_home`]), for the wall time the frame
+//! took, within [`FRAME_STEPPING_BUDGET`], so the page keeps answering input.
+
 use std::ops::{Deref, DerefMut};
+#[cfg(not(target_arch = "wasm32"))]
 use std::sync::atomic::{AtomicBool, Ordering};
+#[cfg(not(target_arch = "wasm32"))]
 use std::sync::{mpsc, Arc};
+#[cfg(not(target_arch = "wasm32"))]
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+#[cfg(not(target_arch = "wasm32"))]
+use web_time::Duration;
+use web_time::Instant;
 
 use dfsph::{Simulation, StepStats};
 
 /// How far simulated time may lag the wall clock before the rest is dropped, in wall
 /// seconds: a few frames' worth, so that one slow frame is caught up and a slow scene is not.
 const MAX_LAG: f64 = 0.05;
+/// In the browser, the longest a frame spends stepping, in wall seconds: the page stays
+/// responsive (at least ~20 frames a second around the steps), and what does not fit is
+/// owed or dropped by the [`Pacer`] as on the stepping thread.
+#[cfg(target_arch = "wasm32")]
+pub const FRAME_STEPPING_BUDGET: f64 = 0.04;
 /// How long the stepping thread waits before looking again when it is ahead of the clock.
+#[cfg(not(target_arch = "wasm32"))]
 const AHEAD_NAP: Duration = Duration::from_micros(500);
 
 /// Real-time pacing: how much simulated time the stepping may cover after `wall` seconds
@@ -51,6 +67,7 @@ impl Pacer {
 }
 
 /// What the stepping thread is given: the simulation and how to pace it.
+#[cfg(not(target_arch = "wasm32"))]
 struct Job {
     sim: Box<Simulation>,
     time_scale: f64,
@@ -58,6 +75,7 @@ struct Job {
 }
 
 /// What comes back: the simulation, the steps taken and how long they took.
+#[cfg(not(target_arch = "wasm32"))]
 struct Returned {
     sim: Box<Simulation>,
     steps: Vec<StepStats>,
@@ -81,6 +99,7 @@ pub struct Away {
 /// The simulation, at home (the window reads and changes it) or away (stepping). It
 /// dereferences to the simulation while at home; the window takes it back
 /// ([`Self::bring_home`]) before anything reads it in a frame.
+#[cfg(not(target_arch = "wasm32"))]
 pub struct Stepper {
     home: Option<Box<Simulation>>,
     jobs: Option<mpsc::Sender<Job>>,
@@ -91,6 +110,7 @@ pub struct Stepper {
     worker: Option<JoinHandle<()>>,
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 impl Stepper {
     /// Start the stepping thread, with `sim` at home.
     pub fn new(sim: Simulation) -> Self {
@@ -184,7 +204,34 @@ impl Stepper {
     }
 }
 
+/// Steps taken away from home and the simulated time they covered.
+#[derive(Default)]
+struct Stepped {
+    steps: Vec<StepStats>,
+    simulated: f64,
+    /// A step came back with a non-finite or zero Δt: nothing more is stepped (a loop must
+    /// not spin on it).
+    broken: bool,
+}
+
+impl Stepped {
+    /// Whether another step is due, `wall` seconds after leaving home.
+    fn due(&self, pacer: &Pacer, wall: f64, time_scale: f64) -> bool {
+        !self.broken && self.simulated < pacer.allowed(wall, time_scale)
+    }
+
+    fn step(&mut self, sim: &mut Simulation) {
+        let s = *sim.step();
+        self.steps.push(s);
+        self.broken = !(s.dt.is_finite() && s.dt > 0.0);
+        if !self.broken {
+            self.simulated += s.dt;
+        }
+    }
+}
+
 /// Step `job`'s simulation on the wall clock until `stop` is set.
+#[cfg(not(target_arch = "wasm32"))]
 fn step_paced(job: Job, stop: &AtomicBool) -> Returned {
     let Job {
         mut sim,
@@ -192,28 +239,87 @@ fn step_paced(job: Job, stop: &AtomicBool) -> Returned {
         pacer,
     } = job;
     let start = Instant::now();
-    let mut steps = Vec::new();
-    let mut simulated = 0.0;
-    // After a broken step (a non-finite or zero Δt) nothing more is stepped: this loop must
-    // not spin on it, and waits to be called home.
-    let mut broken = false;
+    let mut stepped = Stepped::default();
     while !stop.load(Ordering::Acquire) {
-        if broken || simulated >= pacer.allowed(start.elapsed().as_secs_f64(), time_scale) {
+        if stepped.due(&pacer, start.elapsed().as_secs_f64(), time_scale) {
+            stepped.step(&mut sim);
+        } else {
             std::thread::sleep(AHEAD_NAP);
-            continue;
-        }
-        let s = *sim.step();
-        steps.push(s);
-        broken = !(s.dt.is_finite() && s.dt > 0.0);
-        if !broken {
-            simulated += s.dt;
         }
     }
     Returned {
         sim,
-        steps,
-        simulated,
+        steps: stepped.steps,
+        simulated: stepped.simulated,
         wall: start.elapsed().as_secs_f64(),
+    }
+}
+
+/// The browser's stepper: the simulation never leaves; what was due while a frame was drawn
+/// is stepped when the next frame takes it back.
+#[cfg(target_arch = "wasm32")]
+pub struct Stepper {
+    home: Option<Box<Simulation>>,
+    /// When the simulation was "sent away" and at what time scale.
+    away: Option<(Instant, f64)>,
+    pacer: Pacer,
+    time_scale: f64,
+}
+
+#[cfg(target_arch = "wasm32")]
+impl Stepper {
+    /// `sim`, at home.
+    pub fn new(sim: Simulation) -> Self {
+        Self {
+            home: Some(Box::new(sim)),
+            away: None,
+            pacer: Pacer::default(),
+            time_scale: 1.0,
+        }
+    }
+
+    /// Replace the simulation (a reset or another scene); the pacing starts afresh.
+    pub fn replace(&mut self, sim: Simulation) {
+        self.away = None;
+        self.home = Some(Box::new(sim));
+        self.pacer = Pacer::default();
+    }
+
+    /// Forget what the pacing owed (after a pause).
+    pub fn reset_pace(&mut self) {
+        self.pacer = Pacer::default();
+    }
+
+    /// Let the simulation step at `time_scale` × real time until [`Self::bring_home`].
+    pub fn send_away(&mut self, time_scale: f64) {
+        if time_scale != self.time_scale {
+            self.pacer = Pacer::default();
+            self.time_scale = time_scale;
+        }
+        self.away = Some((Instant::now(), time_scale));
+    }
+
+    /// Step what came due since [`Self::send_away`], within [`FRAME_STEPPING_BUDGET`], and
+    /// say what was done.
+    pub fn bring_home(&mut self) -> Away {
+        let (Some((sent, time_scale)), Some(sim)) = (self.away.take(), self.home.as_mut()) else {
+            return Away::default();
+        };
+        let stepping = Instant::now();
+        let mut stepped = Stepped::default();
+        while stepped.due(&self.pacer, sent.elapsed().as_secs_f64(), time_scale)
+            && stepping.elapsed().as_secs_f64() < FRAME_STEPPING_BUDGET
+        {
+            stepped.step(sim);
+        }
+        let wall = sent.elapsed().as_secs_f64();
+        let dropped = self.pacer.settle(stepped.simulated, wall, time_scale);
+        Away {
+            steps: stepped.steps,
+            simulated: stepped.simulated,
+            wall,
+            dropped,
+        }
     }
 }
 
@@ -234,6 +340,7 @@ impl DerefMut for Stepper {
     }
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 impl Drop for Stepper {
     fn drop(&mut self) {
         if self.home.is_none() && self.worker.is_some() {

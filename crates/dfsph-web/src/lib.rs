@@ -1,0 +1,91 @@
+//! # dfsph-web — the dfsph2d viewer in a browser tab
+//!
+//! The desktop viewer ([`dfsph_viewer`]) compiled to WebAssembly and started on the page's
+//! canvas by eframe's web runner, with the solver built serial (the page has one thread).
+//! `scripts/build-web.sh OUTDIR` builds the site; `index.html` beside this crate is its page.
+//!
+//! The page's address may carry a scene (`#scene=NAME` for a built-in one, `#s=...` for a
+//! shared one: [`dfsph_viewer::share`]). For tests and scripts the page exposes
+//! `window.dfsph2d.state()`: `{particles, time, mean_x, steps, realtime, fps, scene}` of the
+//! last frame drawn, or `null` before the first.
+//!
+//! On any other target the crate is empty: the host builds it only to run its browser test
+//! (`tests/browser.rs`).
+#![cfg(target_arch = "wasm32")]
+
+use std::cell::RefCell;
+use std::rc::Rc;
+
+use dfsph_viewer::app::{FrameReport, ViewerApp};
+use dfsph_viewer::{share, web, ViewerOptions};
+use wasm_bindgen::prelude::*;
+
+/// The id of the page's canvas (`index.html`).
+const CANVAS_ID: &str = "dfsph2d-canvas";
+
+thread_local! {
+    /// What the last frame showed, for [`state`].
+    static LAST_FRAME: RefCell<Option<FrameReport>> = const { RefCell::new(None) };
+    /// The running viewer (kept alive for the page's lifetime).
+    static RUNNER: RefCell<Option<eframe::WebRunner>> = const { RefCell::new(None) };
+}
+
+/// Start the viewer on the page's canvas, with the scene the address names (or the default
+/// dam break). Called by wasm-bindgen's generated module when it loads.
+#[wasm_bindgen(start)]
+pub fn start() -> Result<(), JsValue> {
+    let canvas = web_sys::window()
+        .and_then(|w| w.document())
+        .and_then(|d| d.get_element_by_id(CANVAS_ID))
+        .ok_or_else(|| JsValue::from_str(&format!("the page has no #{CANVAS_ID}")))?
+        .dyn_into::<web_sys::HtmlCanvasElement>()?;
+    let (scene, note) = share::initial_scene(&web::location_hash());
+    let runner = eframe::WebRunner::new();
+    RUNNER.with(|r| *r.borrow_mut() = Some(runner.clone()));
+    wasm_bindgen_futures::spawn_local(async move {
+        let started = runner
+            .start(
+                canvas,
+                eframe::WebOptions::default(),
+                Box::new(move |cc| {
+                    let failures = Rc::new(RefCell::new(Vec::new()));
+                    let app = ViewerApp::new(cc, ViewerOptions::new(scene), failures)?
+                        .with_note(note)
+                        .on_frame(|report| {
+                            LAST_FRAME.with(|last| *last.borrow_mut() = Some(report.clone()));
+                        });
+                    Ok(Box::new(app) as Box<dyn eframe::App>)
+                }),
+            )
+            .await;
+        if let Err(e) = started {
+            web_sys::console::error_1(&e);
+        }
+    });
+    Ok(())
+}
+
+/// `window.dfsph2d.state()`: the last frame's particles (fluid count), simulated time (s),
+/// mean x of the fluid (m), steps taken, real-time factor and frames per second, and the
+/// scene's name; `null` before the first frame.
+#[wasm_bindgen]
+pub fn state() -> JsValue {
+    LAST_FRAME.with(|last| {
+        let last = last.borrow();
+        let Some(r) = last.as_ref() else {
+            return JsValue::NULL;
+        };
+        let o = js_sys::Object::new();
+        let set = |k: &str, v: JsValue| {
+            let _ = js_sys::Reflect::set(&o, &JsValue::from_str(k), &v);
+        };
+        set("particles", (r.particles as f64).into());
+        set("time", r.time.into());
+        set("mean_x", r.mean_x.into());
+        set("steps", (r.steps as f64).into());
+        set("realtime", r.realtime.into());
+        set("fps", r.fps.into());
+        set("scene", JsValue::from_str(&r.scene));
+        o.into()
+    })
+}
