@@ -74,10 +74,28 @@ const SCENE_KEYS: [Key; 9] = [
     Key::Num9,
 ];
 
+/// What the keys that write files do in the browser, where files are downloads.
+#[cfg(target_arch = "wasm32")]
+const WEB_KEY_HELP: &[(&str, &str)] = &[
+    ("F12", "download a PNG of the water"),
+    ("Ctrl+S", "download the state as a scene, scene-<time>.json"),
+    (
+        "Ctrl+O or drop a .json",
+        "open a scene file (the browser's picker)",
+    ),
+    ("V", "video recording: in the desktop viewer (dfsph2d view)"),
+];
+
 /// The help overlay's lines: [`KEY_HELP`] with the built-in scenes' keys after `R`.
 pub fn key_help() -> Vec<(String, &'static str)> {
     let mut lines: Vec<(String, &'static str)> =
         KEY_HELP.iter().map(|(k, w)| (k.to_string(), *w)).collect();
+    #[cfg(target_arch = "wasm32")]
+    for (key, what) in &mut lines {
+        if let Some((_, web)) = WEB_KEY_HELP.iter().find(|(k, _)| k == key) {
+            *what = web;
+        }
+    }
     if let Some(keys) = scene_keys(BUILTIN_SCENES.len()) {
         let at = lines
             .iter()

@@ -35,7 +35,7 @@ const MAX_LAG: f64 = 0.05;
 /// In the browser, the longest a frame spends stepping, in wall seconds: the page stays
 /// responsive (at least ~20 frames a second around the steps), and what does not fit is
 /// owed or dropped by the [`Pacer`] as on the stepping thread.
-#[cfg(target_arch = "wasm32")]
+#[cfg(any(target_arch = "wasm32", test))]
 pub const FRAME_STEPPING_BUDGET: f64 = 0.04;
 /// How long the stepping thread waits before looking again when it is ahead of the clock.
 #[cfg(not(target_arch = "wasm32"))]
@@ -256,9 +256,9 @@ fn step_paced(job: Job, stop: &AtomicBool) -> Returned {
 }
 
 /// The browser's stepper: the simulation never leaves; what was due while a frame was drawn
-/// is stepped when the next frame takes it back.
-#[cfg(target_arch = "wasm32")]
-pub struct Stepper {
+/// is stepped when the next frame takes it back. (Built natively too, for its tests.)
+#[cfg(any(target_arch = "wasm32", test))]
+pub struct FrameStepper {
     home: Option<Box<Simulation>>,
     /// When the simulation was "sent away" and at what time scale.
     away: Option<(Instant, f64)>,
@@ -266,8 +266,12 @@ pub struct Stepper {
     time_scale: f64,
 }
 
+/// The stepper of a page, which has no thread to spare.
 #[cfg(target_arch = "wasm32")]
-impl Stepper {
+pub type Stepper = FrameStepper;
+
+#[cfg(any(target_arch = "wasm32", test))]
+impl FrameStepper {
     /// `sim`, at home.
     pub fn new(sim: Simulation) -> Self {
         Self {
@@ -320,6 +324,11 @@ impl Stepper {
             wall,
             dropped,
         }
+    }
+
+    /// The simulation (always at home between frames).
+    pub fn home(&self) -> &Simulation {
+        self.home.as_deref().expect("the simulation never leaves")
     }
 }
 
@@ -403,6 +412,52 @@ mod tests {
         std::thread::sleep(Duration::from_millis(20));
         assert_eq!(stepper.bring_home().steps.len(), 0);
         assert_eq!(stepper.time(), t);
+    }
+
+    #[test]
+    fn the_frame_stepper_keeps_to_the_clock_within_its_budget() {
+        let mut stepper = FrameStepper::new(small_dam_break());
+        // Nothing was sent away: nothing is stepped.
+        assert!(stepper.bring_home().steps.is_empty());
+        stepper.send_away(1.0);
+        std::thread::sleep(Duration::from_millis(60));
+        let away = stepper.bring_home();
+        assert!(!away.steps.is_empty(), "{away:?}");
+        assert_eq!(stepper.home().step_count(), away.steps.len() as u64);
+        // Up to the clock (the last step may overshoot it), not beyond. (A few dozen steps of
+        // 300 particles fit the 40 ms budget many times over.)
+        let last = away.steps.last().unwrap().dt;
+        assert!(away.simulated <= away.wall + last + 1e-9, "{away:?}");
+        assert!(away.simulated >= 0.06, "{away:?}");
+        // Far more than a frame can step (100 x real time for half a second): stepping stops
+        // at the budget, and what is owed beyond the lag allowed is dropped.
+        stepper.send_away(100.0);
+        std::thread::sleep(Duration::from_millis(500));
+        let away = stepper.bring_home();
+        assert!(away.simulated < 40.0 && away.dropped > 10.0, "{away:?}");
+        assert!(
+            away.wall < 0.5 + FRAME_STEPPING_BUDGET + 0.1,
+            "stepping ran past its budget: {away:?}"
+        );
+    }
+
+    #[test]
+    fn the_frame_stepper_gives_the_bits_of_the_stepping_thread() {
+        let mut frames = FrameStepper::new(small_dam_break());
+        let mut steps = 0;
+        while steps < 30 {
+            frames.send_away(4.0);
+            std::thread::sleep(Duration::from_millis(5));
+            steps += frames.bring_home().steps.len();
+        }
+        let mut here = small_dam_break();
+        for _ in 0..steps {
+            here.step();
+        }
+        assert_eq!(
+            dfsph::recording::fingerprint(frames.home()),
+            dfsph::recording::fingerprint(&here)
+        );
     }
 
     #[test]
