@@ -106,6 +106,16 @@ pub fn key_help() -> Vec<(String, &'static str)> {
     lines
 }
 
+/// Whether `key` went down with Ctrl (Cmd on a Mac) this frame. The modifiers are the key
+/// event's own: on a slow frame (a large scene, software rendering) the whole chord, Ctrl
+/// released too, arrives within one frame, and the frame's modifier state has lost it.
+fn command_pressed(input: &egui::InputState, key: Key) -> bool {
+    input.events.iter().any(|e| {
+        matches!(e, egui::Event::Key { key: k, pressed: true, modifiers, .. }
+            if *k == key && modifiers.command)
+    })
+}
+
 /// Gravity tilt per press of `q` / `e`, degrees.
 pub const TILT_STEP_DEG: f32 = 5.0;
 /// Largest gravity tilt, degrees either way.
@@ -403,10 +413,10 @@ impl InputMapper {
         if input.key_pressed(Key::F12) {
             out.push(Command::Screenshot);
         }
-        if input.modifiers.command && input.key_pressed(Key::S) {
+        if command_pressed(input, Key::S) {
             out.push(Command::SaveScene);
         }
-        if input.modifiers.command && input.key_pressed(Key::O) {
+        if command_pressed(input, Key::O) {
             out.push(Command::OpenScene);
         }
         if input.key_pressed(Key::V) {
@@ -743,6 +753,12 @@ mod tests {
             vec![Command::OpenScene]
         );
         assert_eq!(h.frame(vec![key(Key::S, true), key(Key::O, true)]), vec![]);
+        // A whole chord within one slow frame: Ctrl is up again by the frame's end, but it
+        // was down when S went down.
+        assert_eq!(
+            h.frame_with(vec![ctrl(Key::S), key(Key::S, false)], Modifiers::NONE),
+            vec![Command::SaveScene]
+        );
     }
 
     #[test]
