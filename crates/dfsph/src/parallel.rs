@@ -15,7 +15,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
 // The standing-by machinery, which the serial build has no workers for.
 #[cfg(feature = "parallel")]
-use std::{sync::atomic::AtomicBool, sync::Arc, time::Instant};
+use std::{sync::atomic::AtomicBool, sync::Arc};
+use web_time::Instant;
 
 /// Fewest items a task of a light pass (a few arithmetic operations, or one copy, per
 /// item) is given: such a pass over fewer items than this runs on one worker. At about

@@ -5,7 +5,7 @@ use crate::par::{self, prelude::*};
 use crate::parallel::{self, LIGHT_PASS_MIN_ITEMS};
 use glam::Vec2;
 use serde::Serialize;
-use std::time::Instant;
+use web_time::Instant;
 
 use crate::boundary::{self, Body, BodyId, BoundaryModel, BoundarySamples};
 use crate::forces::{self, PointerForce};
