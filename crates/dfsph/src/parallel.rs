@@ -16,6 +16,7 @@ use std::time::Duration;
 // The standing-by machinery, which the serial build has no workers for.
 #[cfg(feature = "parallel")]
 use std::{sync::atomic::AtomicBool, sync::Arc};
+#[cfg(feature = "parallel")]
 use web_time::Instant;
 
 /// Fewest items a task of a light pass (a few arithmetic operations, or one copy, per
