@@ -12,18 +12,24 @@
 //! owed, so a slow scene runs slower than real time instead of falling ever further behind.
 
 //!
-//! The browser has no thread to spare (the page is single-threaded): there the steps run at
-//! the start of the next frame instead ([`Stepper::bring_home`]), for the wall time the frame
-//! took, within [`FRAME_STEPPING_BUDGET`], so the page keeps answering input.
+//! The single-threaded page has no thread to spare: there the steps run at the start of the
+//! next frame instead ([`Stepper::bring_home`]), for the wall time the frame took, within
+//! [`FRAME_STEPPING_BUDGET`], so the page keeps answering input.
+//!
+//! The threaded page (feature `threads`: WebAssembly threads, rayon's pool on Web Workers)
+//! steps as the desktop does, on a task of the pool instead of a thread of its own, and the
+//! page's main thread, which may not block (no `Atomics.wait` there), never waits on a
+//! channel: it tells the task to stop and polls for the simulation's return, which takes at
+//! most the step in progress, exactly the wait of a desktop frame.
 
 use std::ops::{Deref, DerefMut};
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 use std::sync::atomic::{AtomicBool, Ordering};
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 use std::sync::{mpsc, Arc};
 #[cfg(not(target_arch = "wasm32"))]
 use std::thread::JoinHandle;
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 use web_time::Duration;
 use web_time::Instant;
 
@@ -35,10 +41,10 @@ const MAX_LAG: f64 = 0.05;
 /// In the browser, the longest a frame spends stepping, in wall seconds: the page stays
 /// responsive (at least ~20 frames a second around the steps), and what does not fit is
 /// owed or dropped by the [`Pacer`] as on the stepping thread.
-#[cfg(target_arch = "wasm32")]
+#[cfg(all(target_arch = "wasm32", not(feature = "threads")))]
 pub const FRAME_STEPPING_BUDGET: f64 = 0.04;
 /// How long the stepping thread waits before looking again when it is ahead of the clock.
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 const AHEAD_NAP: Duration = Duration::from_micros(500);
 
 /// Real-time pacing: how much simulated time the stepping may cover after `wall` seconds
@@ -67,7 +73,7 @@ impl Pacer {
 }
 
 /// What the stepping thread is given: the simulation and how to pace it.
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 struct Job {
     sim: Box<Simulation>,
     time_scale: f64,
@@ -75,7 +81,7 @@ struct Job {
 }
 
 /// What comes back: the simulation, the steps taken and how long they took.
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 struct Returned {
     sim: Box<Simulation>,
     steps: Vec<StepStats>,
@@ -99,42 +105,57 @@ pub struct Away {
 /// The simulation, at home (the window reads and changes it) or away (stepping). It
 /// dereferences to the simulation while at home; the window takes it back
 /// ([`Self::bring_home`]) before anything reads it in a frame.
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 pub struct Stepper {
     home: Option<Box<Simulation>>,
+    /// Jobs for the stepping thread (native; the page spawns a pool task per job instead).
+    #[cfg(not(target_arch = "wasm32"))]
     jobs: Option<mpsc::Sender<Job>>,
+    /// Where a pool task sends the simulation back (the page).
+    #[cfg(target_arch = "wasm32")]
+    outbox: mpsc::Sender<Returned>,
     returns: mpsc::Receiver<Returned>,
     stop: Arc<AtomicBool>,
     pacer: Pacer,
     time_scale: f64,
+    /// The stepping thread (native).
+    #[cfg(not(target_arch = "wasm32"))]
     worker: Option<JoinHandle<()>>,
 }
 
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 impl Stepper {
-    /// Start the stepping thread, with `sim` at home.
+    /// Start the stepping thread (native), with `sim` at home.
     pub fn new(sim: Simulation) -> Self {
-        let (jobs, inbox) = mpsc::channel::<Job>();
         let (outbox, returns) = mpsc::channel();
         let stop = Arc::new(AtomicBool::new(false));
-        let stop_flag = Arc::clone(&stop);
-        let worker = std::thread::Builder::new()
-            .name("dfsph2d-stepping".into())
-            .spawn(move || {
-                for job in inbox {
-                    if outbox.send(step_paced(job, &stop_flag)).is_err() {
-                        break;
+        #[cfg(not(target_arch = "wasm32"))]
+        let (jobs, worker) = {
+            let (jobs, inbox) = mpsc::channel::<Job>();
+            let stop_flag = Arc::clone(&stop);
+            let worker = std::thread::Builder::new()
+                .name("dfsph2d-stepping".into())
+                .spawn(move || {
+                    for job in inbox {
+                        if outbox.send(step_paced(job, &stop_flag)).is_err() {
+                            break;
+                        }
                     }
-                }
-            })
-            .expect("a thread starts");
+                })
+                .expect("a thread starts");
+            (jobs, worker)
+        };
         Self {
             home: Some(Box::new(sim)),
+            #[cfg(not(target_arch = "wasm32"))]
             jobs: Some(jobs),
+            #[cfg(target_arch = "wasm32")]
+            outbox,
             returns,
             stop,
             pacer: Pacer::default(),
             time_scale: 1.0,
+            #[cfg(not(target_arch = "wasm32"))]
             worker: Some(worker),
         }
     }
@@ -154,7 +175,12 @@ impl Stepper {
     /// Hand the simulation to the stepping thread, to step at `time_scale` × real time until
     /// [`Self::bring_home`].
     pub fn send_away(&mut self, time_scale: f64) {
+        #[cfg(not(target_arch = "wasm32"))]
         let (Some(sim), Some(jobs)) = (self.home.take(), &self.jobs) else {
+            return;
+        };
+        #[cfg(target_arch = "wasm32")]
+        let Some(sim) = self.home.take() else {
             return;
         };
         if time_scale != self.time_scale {
@@ -167,9 +193,22 @@ impl Stepper {
             time_scale,
             pacer: self.pacer,
         };
+        #[cfg(not(target_arch = "wasm32"))]
         if let Err(mpsc::SendError(job)) = jobs.send(job) {
             // The thread is gone (it panicked while stepping before): keep stepping nothing.
             self.home = Some(job.sim);
+        }
+        // The page: a task of the pool steps it (on a Web Worker, where waiting is allowed)
+        // and sends it back. Spawning only queues the task and wakes a worker; rayon's locks
+        // spin on the main thread there (`web_spin_lock`), they never `Atomics.wait`.
+        #[cfg(target_arch = "wasm32")]
+        {
+            let outbox = self.outbox.clone();
+            let stop = Arc::clone(&self.stop);
+            rayon::spawn(move || {
+                // The receiver is gone only when the stepper is.
+                let _ = outbox.send(step_paced(job, &stop));
+            });
         }
     }
 
@@ -180,7 +219,7 @@ impl Stepper {
             return Away::default();
         }
         self.stop.store(true, Ordering::Release);
-        match self.returns.recv() {
+        match self.wait_for_return() {
             Ok(back) => {
                 self.home = Some(back.sim);
                 let dropped = self
@@ -193,12 +232,32 @@ impl Stepper {
                     dropped,
                 }
             }
+            #[cfg(not(target_arch = "wasm32"))]
             Err(_) => {
                 let worker = self.worker.take().expect("the stepping thread was started");
                 match worker.join() {
                     Err(panic) => std::panic::resume_unwind(panic),
                     Ok(()) => unreachable!("the stepping thread ends only when told to"),
                 }
+            }
+            // The stepper holds a sender itself, and a panic on the pool aborts the page.
+            #[cfg(target_arch = "wasm32")]
+            Err(_) => unreachable!("the stepper keeps its channel open"),
+        }
+    }
+
+    /// The simulation back from the stepping, after `stop` was set: the step in progress
+    /// ends first. On native a blocking receive; on the page's main thread, which may not
+    /// block, a poll that spins for at most that step.
+    fn wait_for_return(&self) -> Result<Returned, mpsc::RecvError> {
+        #[cfg(not(target_arch = "wasm32"))]
+        return self.returns.recv();
+        #[cfg(target_arch = "wasm32")]
+        loop {
+            match self.returns.try_recv() {
+                Ok(back) => return Ok(back),
+                Err(mpsc::TryRecvError::Empty) => std::hint::spin_loop(),
+                Err(mpsc::TryRecvError::Disconnected) => return Err(mpsc::RecvError),
             }
         }
     }
@@ -231,7 +290,7 @@ impl Stepped {
 }
 
 /// Step `job`'s simulation on the wall clock until `stop` is set.
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 fn step_paced(job: Job, stop: &AtomicBool) -> Returned {
     let Job {
         mut sim,
@@ -257,7 +316,7 @@ fn step_paced(job: Job, stop: &AtomicBool) -> Returned {
 
 /// The browser's stepper: the simulation never leaves; what was due while a frame was drawn
 /// is stepped when the next frame takes it back.
-#[cfg(target_arch = "wasm32")]
+#[cfg(all(target_arch = "wasm32", not(feature = "threads")))]
 pub struct Stepper {
     home: Option<Box<Simulation>>,
     /// When the simulation was "sent away" and at what time scale.
@@ -266,7 +325,7 @@ pub struct Stepper {
     time_scale: f64,
 }
 
-#[cfg(target_arch = "wasm32")]
+#[cfg(all(target_arch = "wasm32", not(feature = "threads")))]
 impl Stepper {
     /// `sim`, at home.
     pub fn new(sim: Simulation) -> Self {
@@ -340,17 +399,20 @@ impl DerefMut for Stepper {
     }
 }
 
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 impl Drop for Stepper {
     fn drop(&mut self) {
-        if self.home.is_none() && self.worker.is_some() {
+        if self.home.is_none() {
             self.stop.store(true, Ordering::Release);
-            let _ = self.returns.recv();
+            let _ = self.wait_for_return();
         }
         // Closing the channel ends the thread.
-        self.jobs = None;
-        if let Some(worker) = self.worker.take() {
-            let _ = worker.join();
+        #[cfg(not(target_arch = "wasm32"))]
+        {
+            self.jobs = None;
+            if let Some(worker) = self.worker.take() {
+                let _ = worker.join();
+            }
         }
     }
 }
