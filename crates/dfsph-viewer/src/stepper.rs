@@ -19,8 +19,10 @@
 //! The threaded page (feature `threads`: WebAssembly threads, rayon's pool on Web Workers)
 //! steps as the desktop does, on a task of the pool instead of a thread of its own, and the
 //! page's main thread, which may not block (no `Atomics.wait` there), never waits on a
-//! channel: it tells the task to stop and polls for the simulation's return, which takes at
-//! most the step in progress, exactly the wait of a desktop frame.
+//! channel. The task returns the simulation by itself a little before the next frame is
+//! expected (90 % of the last frame's time away, less a step), so a frame usually finds it
+//! home; one that does not tells the task to stop and polls for its return (`try_recv`, a
+//! spin), at most the step in progress, exactly the wait of a desktop frame.
 
 use std::ops::{Deref, DerefMut};
 #[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
@@ -43,6 +45,10 @@ const MAX_LAG: f64 = 0.05;
 /// owed or dropped by the [`Pacer`] as on the stepping thread.
 #[cfg(all(target_arch = "wasm32", not(feature = "threads")))]
 pub const FRAME_STEPPING_BUDGET: f64 = 0.04;
+/// The threaded page: the share of the last frame's time away after which the stepping
+/// starts no step that would not end in time, and returns.
+#[cfg(all(target_arch = "wasm32", feature = "threads"))]
+const HOME_BY_FRACTION: f64 = 0.9;
 /// How long the stepping thread waits before looking again when it is ahead of the clock.
 #[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 const AHEAD_NAP: Duration = Duration::from_micros(500);
@@ -78,6 +84,9 @@ struct Job {
     sim: Box<Simulation>,
     time_scale: f64,
     pacer: Pacer,
+    /// Wall seconds after which no step is started that would not end by then (the page:
+    /// home before the next frame looks for it); `None`: until told to stop (native).
+    home_by: Option<f64>,
 }
 
 /// What comes back: the simulation, the steps taken and how long they took.
@@ -121,6 +130,12 @@ pub struct Stepper {
     /// The stepping thread (native).
     #[cfg(not(target_arch = "wasm32"))]
     worker: Option<JoinHandle<()>>,
+    /// The page: when the simulation was sent away.
+    #[cfg(target_arch = "wasm32")]
+    sent: Option<Instant>,
+    /// The page: how long it was away the last time, in wall seconds (about a frame).
+    #[cfg(target_arch = "wasm32")]
+    last_away: Option<f64>,
 }
 
 #[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
@@ -157,6 +172,10 @@ impl Stepper {
             time_scale: 1.0,
             #[cfg(not(target_arch = "wasm32"))]
             worker: Some(worker),
+            #[cfg(target_arch = "wasm32")]
+            sent: None,
+            #[cfg(target_arch = "wasm32")]
+            last_away: None,
         }
     }
 
@@ -188,10 +207,17 @@ impl Stepper {
             self.time_scale = time_scale;
         }
         self.stop.store(false, Ordering::Release);
+        #[cfg(not(target_arch = "wasm32"))]
+        let home_by = None;
+        // The page: back a little before a frame as long as the last one, so that the frame
+        // finds it home rather than waiting for (spinning through) a step.
+        #[cfg(target_arch = "wasm32")]
+        let home_by = self.last_away.map(|away| HOME_BY_FRACTION * away);
         let job = Job {
             sim,
             time_scale,
             pacer: self.pacer,
+            home_by,
         };
         #[cfg(not(target_arch = "wasm32"))]
         if let Err(mpsc::SendError(job)) = jobs.send(job) {
@@ -203,6 +229,7 @@ impl Stepper {
         // spin on the main thread there (`web_spin_lock`), they never `Atomics.wait`.
         #[cfg(target_arch = "wasm32")]
         {
+            self.sent = Some(Instant::now());
             let outbox = self.outbox.clone();
             let stop = Arc::clone(&self.stop);
             rayon::spawn(move || {
@@ -222,13 +249,20 @@ impl Stepper {
         match self.wait_for_return() {
             Ok(back) => {
                 self.home = Some(back.sim);
-                let dropped = self
-                    .pacer
-                    .settle(back.simulated, back.wall, self.time_scale);
+                // The page: the whole time away, also what followed an early return.
+                #[cfg(target_arch = "wasm32")]
+                let wall = {
+                    let away = self.sent.take().map(|sent| sent.elapsed().as_secs_f64());
+                    self.last_away = away;
+                    away.unwrap_or(back.wall).max(back.wall)
+                };
+                #[cfg(not(target_arch = "wasm32"))]
+                let wall = back.wall;
+                let dropped = self.pacer.settle(back.simulated, wall, self.time_scale);
                 Away {
                     steps: back.steps,
                     simulated: back.simulated,
-                    wall: back.wall,
+                    wall,
                     dropped,
                 }
             }
@@ -289,19 +323,28 @@ impl Stepped {
     }
 }
 
-/// Step `job`'s simulation on the wall clock until `stop` is set.
+/// Step `job`'s simulation on the wall clock until `stop` is set (or, with `home_by`, until
+/// the next step would end after it).
 #[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 fn step_paced(job: Job, stop: &AtomicBool) -> Returned {
     let Job {
         mut sim,
         time_scale,
         pacer,
+        home_by,
     } = job;
     let start = Instant::now();
     let mut stepped = Stepped::default();
+    // How long the last step took.
+    let mut step_wall = 0.0;
     while !stop.load(Ordering::Acquire) {
-        if stepped.due(&pacer, start.elapsed().as_secs_f64(), time_scale) {
+        let now = start.elapsed().as_secs_f64();
+        if home_by.is_some_and(|by| now + step_wall > by) {
+            break;
+        }
+        if stepped.due(&pacer, now, time_scale) {
             stepped.step(&mut sim);
+            step_wall = start.elapsed().as_secs_f64() - now;
         } else {
             std::thread::sleep(AHEAD_NAP);
         }
