@@ -12,18 +12,26 @@
 //! owed, so a slow scene runs slower than real time instead of falling ever further behind.
 
 //!
-//! The browser has no thread to spare (the page is single-threaded): there the steps run at
-//! the start of the next frame instead ([`Stepper::bring_home`]), for the wall time the frame
-//! took, within a budget ([`stepping_budget`]), so the page keeps answering input.
+//! The single-threaded page has no thread to spare: there the steps run at the start of the
+//! next frame instead ([`Stepper::bring_home`]), for the wall time the frame took, within a
+//! budget ([`stepping_budget`]), so the page keeps answering input.
+//!
+//! The threaded page (feature `threads`: WebAssembly threads, rayon's pool on Web Workers)
+//! steps as the desktop does, on a task of the pool instead of a thread of its own, and the
+//! page's main thread, which may not block (no `Atomics.wait` there), never waits on a
+//! channel. The task returns the simulation by itself a little before the next frame is
+//! expected (90 % of the last frame's time away, less a step), so a frame usually finds it
+//! home; one that does not tells the task to stop and polls for its return (`try_recv`, a
+//! spin), at most the step in progress, exactly the wait of a desktop frame.
 
 use std::ops::{Deref, DerefMut};
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 use std::sync::atomic::{AtomicBool, Ordering};
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 use std::sync::{mpsc, Arc};
 #[cfg(not(target_arch = "wasm32"))]
 use std::thread::JoinHandle;
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 use web_time::Duration;
 use web_time::Instant;
 
@@ -35,10 +43,14 @@ const MAX_LAG: f64 = 0.05;
 /// In the browser, the wall seconds a frame may spend stepping when the last frame was drawn
 /// quickly: the page stays responsive (at least ~20 frames a second around the steps), and
 /// what does not fit is owed or dropped by the [`Pacer`] as on the stepping thread.
-#[cfg(any(target_arch = "wasm32", test))]
+#[cfg(any(all(target_arch = "wasm32", not(feature = "threads")), test))]
 pub const FRAME_STEPPING_BUDGET: f64 = 0.04;
+/// The threaded page: the share of the last frame's time away after which the stepping
+/// starts no step that would not end in time, and returns.
+#[cfg(all(target_arch = "wasm32", feature = "threads"))]
+const HOME_BY_FRACTION: f64 = 0.9;
 /// How long the stepping thread waits before looking again when it is ahead of the clock.
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 const AHEAD_NAP: Duration = Duration::from_micros(500);
 
 /// Real-time pacing: how much simulated time the stepping may cover after `wall` seconds
@@ -67,15 +79,18 @@ impl Pacer {
 }
 
 /// What the stepping thread is given: the simulation and how to pace it.
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 struct Job {
     sim: Box<Simulation>,
     time_scale: f64,
     pacer: Pacer,
+    /// Wall seconds after which no step is started that would not end by then (the page:
+    /// home before the next frame looks for it); `None`: until told to stop (native).
+    home_by: Option<f64>,
 }
 
 /// What comes back: the simulation, the steps taken and how long they took.
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 struct Returned {
     sim: Box<Simulation>,
     steps: Vec<StepStats>,
@@ -99,43 +114,68 @@ pub struct Away {
 /// The simulation, at home (the window reads and changes it) or away (stepping). It
 /// dereferences to the simulation while at home; the window takes it back
 /// ([`Self::bring_home`]) before anything reads it in a frame.
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 pub struct Stepper {
     home: Option<Box<Simulation>>,
+    /// Jobs for the stepping thread (native; the page spawns a pool task per job instead).
+    #[cfg(not(target_arch = "wasm32"))]
     jobs: Option<mpsc::Sender<Job>>,
+    /// Where a pool task sends the simulation back (the page).
+    #[cfg(target_arch = "wasm32")]
+    outbox: mpsc::Sender<Returned>,
     returns: mpsc::Receiver<Returned>,
     stop: Arc<AtomicBool>,
     pacer: Pacer,
     time_scale: f64,
+    /// The stepping thread (native).
+    #[cfg(not(target_arch = "wasm32"))]
     worker: Option<JoinHandle<()>>,
+    /// The page: when the simulation was sent away.
+    #[cfg(target_arch = "wasm32")]
+    sent: Option<Instant>,
+    /// The page: how long it was away the last time, in wall seconds (about a frame).
+    #[cfg(target_arch = "wasm32")]
+    last_away: Option<f64>,
 }
 
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 impl Stepper {
-    /// Start the stepping thread, with `sim` at home.
+    /// Start the stepping thread (native), with `sim` at home.
     pub fn new(sim: Simulation) -> Self {
-        let (jobs, inbox) = mpsc::channel::<Job>();
         let (outbox, returns) = mpsc::channel();
         let stop = Arc::new(AtomicBool::new(false));
-        let stop_flag = Arc::clone(&stop);
-        let worker = std::thread::Builder::new()
-            .name("dfsph2d-stepping".into())
-            .spawn(move || {
-                for job in inbox {
-                    if outbox.send(step_paced(job, &stop_flag)).is_err() {
-                        break;
+        #[cfg(not(target_arch = "wasm32"))]
+        let (jobs, worker) = {
+            let (jobs, inbox) = mpsc::channel::<Job>();
+            let stop_flag = Arc::clone(&stop);
+            let worker = std::thread::Builder::new()
+                .name("dfsph2d-stepping".into())
+                .spawn(move || {
+                    for job in inbox {
+                        if outbox.send(step_paced(job, &stop_flag)).is_err() {
+                            break;
+                        }
                     }
-                }
-            })
-            .expect("a thread starts");
+                })
+                .expect("a thread starts");
+            (jobs, worker)
+        };
         Self {
             home: Some(Box::new(sim)),
+            #[cfg(not(target_arch = "wasm32"))]
             jobs: Some(jobs),
+            #[cfg(target_arch = "wasm32")]
+            outbox,
             returns,
             stop,
             pacer: Pacer::default(),
             time_scale: 1.0,
+            #[cfg(not(target_arch = "wasm32"))]
             worker: Some(worker),
+            #[cfg(target_arch = "wasm32")]
+            sent: None,
+            #[cfg(target_arch = "wasm32")]
+            last_away: None,
         }
     }
 
@@ -154,7 +194,12 @@ impl Stepper {
     /// Hand the simulation to the stepping thread, to step at `time_scale` × real time until
     /// [`Self::bring_home`].
     pub fn send_away(&mut self, time_scale: f64) {
+        #[cfg(not(target_arch = "wasm32"))]
         let (Some(sim), Some(jobs)) = (self.home.take(), &self.jobs) else {
+            return;
+        };
+        #[cfg(target_arch = "wasm32")]
+        let Some(sim) = self.home.take() else {
             return;
         };
         if time_scale != self.time_scale {
@@ -162,14 +207,35 @@ impl Stepper {
             self.time_scale = time_scale;
         }
         self.stop.store(false, Ordering::Release);
+        #[cfg(not(target_arch = "wasm32"))]
+        let home_by = None;
+        // The page: back a little before a frame as long as the last one, so that the frame
+        // finds it home rather than waiting for (spinning through) a step.
+        #[cfg(target_arch = "wasm32")]
+        let home_by = self.last_away.map(|away| HOME_BY_FRACTION * away);
         let job = Job {
             sim,
             time_scale,
             pacer: self.pacer,
+            home_by,
         };
+        #[cfg(not(target_arch = "wasm32"))]
         if let Err(mpsc::SendError(job)) = jobs.send(job) {
             // The thread is gone (it panicked while stepping before): keep stepping nothing.
             self.home = Some(job.sim);
+        }
+        // The page: a task of the pool steps it (on a Web Worker, where waiting is allowed)
+        // and sends it back. Spawning only queues the task and wakes a worker; rayon's locks
+        // spin on the main thread there (`web_spin_lock`), they never `Atomics.wait`.
+        #[cfg(target_arch = "wasm32")]
+        {
+            self.sent = Some(Instant::now());
+            let outbox = self.outbox.clone();
+            let stop = Arc::clone(&self.stop);
+            rayon::spawn(move || {
+                // The receiver is gone only when the stepper is.
+                let _ = outbox.send(step_paced(job, &stop));
+            });
         }
     }
 
@@ -180,25 +246,52 @@ impl Stepper {
             return Away::default();
         }
         self.stop.store(true, Ordering::Release);
-        match self.returns.recv() {
+        match self.wait_for_return() {
             Ok(back) => {
                 self.home = Some(back.sim);
-                let dropped = self
-                    .pacer
-                    .settle(back.simulated, back.wall, self.time_scale);
+                // The page: the whole time away, also what followed an early return.
+                #[cfg(target_arch = "wasm32")]
+                let wall = {
+                    let away = self.sent.take().map(|sent| sent.elapsed().as_secs_f64());
+                    self.last_away = away;
+                    away.unwrap_or(back.wall).max(back.wall)
+                };
+                #[cfg(not(target_arch = "wasm32"))]
+                let wall = back.wall;
+                let dropped = self.pacer.settle(back.simulated, wall, self.time_scale);
                 Away {
                     steps: back.steps,
                     simulated: back.simulated,
-                    wall: back.wall,
+                    wall,
                     dropped,
                 }
             }
+            #[cfg(not(target_arch = "wasm32"))]
             Err(_) => {
                 let worker = self.worker.take().expect("the stepping thread was started");
                 match worker.join() {
                     Err(panic) => std::panic::resume_unwind(panic),
                     Ok(()) => unreachable!("the stepping thread ends only when told to"),
                 }
+            }
+            // The stepper holds a sender itself, and a panic on the pool aborts the page.
+            #[cfg(target_arch = "wasm32")]
+            Err(_) => unreachable!("the stepper keeps its channel open"),
+        }
+    }
+
+    /// The simulation back from the stepping, after `stop` was set: the step in progress
+    /// ends first. On native a blocking receive; on the page's main thread, which may not
+    /// block, a poll that spins for at most that step.
+    fn wait_for_return(&self) -> Result<Returned, mpsc::RecvError> {
+        #[cfg(not(target_arch = "wasm32"))]
+        return self.returns.recv();
+        #[cfg(target_arch = "wasm32")]
+        loop {
+            match self.returns.try_recv() {
+                Ok(back) => return Ok(back),
+                Err(mpsc::TryRecvError::Empty) => std::hint::spin_loop(),
+                Err(mpsc::TryRecvError::Disconnected) => return Err(mpsc::RecvError),
             }
         }
     }
@@ -230,19 +323,28 @@ impl Stepped {
     }
 }
 
-/// Step `job`'s simulation on the wall clock until `stop` is set.
-#[cfg(not(target_arch = "wasm32"))]
+/// Step `job`'s simulation on the wall clock until `stop` is set (or, with `home_by`, until
+/// the next step would end after it).
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 fn step_paced(job: Job, stop: &AtomicBool) -> Returned {
     let Job {
         mut sim,
         time_scale,
         pacer,
+        home_by,
     } = job;
     let start = Instant::now();
     let mut stepped = Stepped::default();
+    // How long the last step took.
+    let mut step_wall = 0.0;
     while !stop.load(Ordering::Acquire) {
-        if stepped.due(&pacer, start.elapsed().as_secs_f64(), time_scale) {
+        let now = start.elapsed().as_secs_f64();
+        if home_by.is_some_and(|by| now + step_wall > by) {
+            break;
+        }
+        if stepped.due(&pacer, now, time_scale) {
             stepped.step(&mut sim);
+            step_wall = start.elapsed().as_secs_f64() - now;
         } else {
             std::thread::sleep(AHEAD_NAP);
         }
@@ -256,7 +358,7 @@ fn step_paced(job: Job, stop: &AtomicBool) -> Returned {
 }
 
 /// The most wall time a page's frame spends stepping, s, however long it waited.
-#[cfg(any(target_arch = "wasm32", test))]
+#[cfg(any(all(target_arch = "wasm32", not(feature = "threads")), test))]
 pub const MAX_FRAME_STEPPING: f64 = 0.25;
 
 /// The wall time a page's frame may spend stepping after waiting `waited` seconds since the
@@ -264,14 +366,14 @@ pub const MAX_FRAME_STEPPING: f64 = 0.25;
 /// the wait when that is longer (at most [`MAX_FRAME_STEPPING`]). A long wait is the
 /// browser drawing the last frame (software WebGL, a slow GPU), which it does beside the
 /// page's thread: stepping for part of it costs the page few frames.
-#[cfg(any(target_arch = "wasm32", test))]
+#[cfg(any(all(target_arch = "wasm32", not(feature = "threads")), test))]
 pub fn stepping_budget(waited: f64) -> f64 {
     (0.75 * waited).clamp(FRAME_STEPPING_BUDGET, MAX_FRAME_STEPPING)
 }
 
 /// The browser's stepper: the simulation never leaves; what was due while a frame was drawn
 /// is stepped when the next frame takes it back. (Built natively too, for its tests.)
-#[cfg(any(target_arch = "wasm32", test))]
+#[cfg(any(all(target_arch = "wasm32", not(feature = "threads")), test))]
 pub struct FrameStepper {
     home: Option<Box<Simulation>>,
     /// When the simulation was "sent away" and at what time scale.
@@ -281,10 +383,10 @@ pub struct FrameStepper {
 }
 
 /// The stepper of a page, which has no thread to spare.
-#[cfg(target_arch = "wasm32")]
+#[cfg(all(target_arch = "wasm32", not(feature = "threads")))]
 pub type Stepper = FrameStepper;
 
-#[cfg(any(target_arch = "wasm32", test))]
+#[cfg(any(all(target_arch = "wasm32", not(feature = "threads")), test))]
 impl FrameStepper {
     /// `sim`, at home.
     pub fn new(sim: Simulation) -> Self {
@@ -364,17 +466,20 @@ impl DerefMut for Stepper {
     }
 }
 
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 impl Drop for Stepper {
     fn drop(&mut self) {
-        if self.home.is_none() && self.worker.is_some() {
+        if self.home.is_none() {
             self.stop.store(true, Ordering::Release);
-            let _ = self.returns.recv();
+            let _ = self.wait_for_return();
         }
         // Closing the channel ends the thread.
-        self.jobs = None;
-        if let Some(worker) = self.worker.take() {
-            let _ = worker.join();
+        #[cfg(not(target_arch = "wasm32"))]
+        {
+            self.jobs = None;
+            if let Some(worker) = self.worker.take() {
+                let _ = worker.join();
+            }
         }
     }
 }

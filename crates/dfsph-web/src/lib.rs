@@ -4,10 +4,17 @@
 //! canvas by eframe's web runner, with the solver built serial (the page has one thread).
 //! `scripts/build-web.sh OUTDIR` builds the site; `index.html` beside this crate is its page.
 //!
+//! With the `threads` feature (WebAssembly threads: nightly, atomics; the site's `threads/`)
+//! the solver is parallel on rayon's pool of Web Workers and the simulation steps on it: the
+//! page first calls [`init_thread_pool`] (`initThreadPool(n)`, wasm-bindgen-rayon's), then
+//! [`start`] itself. `index.html` loads that build where the page is cross-origin isolated
+//! (served with the COOP/COEP headers SharedArrayBuffer needs), the single-threaded one
+//! elsewhere.
+//!
 //! The page's address may carry a scene (`#scene=NAME` for a built-in one, `#s=...` for a
 //! shared one: [`dfsph_viewer::share`]). For tests and scripts the page exposes
-//! `window.dfsph2d.state()`: `{particles, time, mean_x, steps, realtime, fps, scene}` of the
-//! last frame drawn, or `null` before the first.
+//! `window.dfsph2d.state()`: `{particles, time, mean_x, steps, realtime, fps, scene, threads}`
+//! of the last frame drawn, or `null` before the first.
 //!
 //! On any other target the crate is empty: the host builds it only to run its browser test
 //! (`tests/browser.rs`).
@@ -19,6 +26,10 @@ use std::rc::Rc;
 use dfsph_viewer::app::{FrameReport, ViewerApp};
 use dfsph_viewer::{share, web, ViewerOptions};
 use wasm_bindgen::prelude::*;
+/// `initThreadPool(n)`: start rayon's pool of `n` Web Workers; the threaded page awaits it
+/// before [`start`].
+#[cfg(feature = "threads")]
+pub use wasm_bindgen_rayon::init_thread_pool;
 
 /// The id of the page's canvas (`index.html`).
 const CANVAS_ID: &str = "dfsph2d-canvas";
@@ -31,8 +42,10 @@ thread_local! {
 }
 
 /// Start the viewer on the page's canvas, with the scene the address names (or the default
-/// dam break). Called by wasm-bindgen's generated module when it loads.
-#[wasm_bindgen(start)]
+/// dam break). Called by wasm-bindgen's generated module when it loads; in the threaded
+/// build by the page, once the pool is up (the viewer's first frame already uses it).
+#[cfg_attr(not(feature = "threads"), wasm_bindgen(start))]
+#[cfg_attr(feature = "threads", wasm_bindgen)]
 pub fn start() -> Result<(), JsValue> {
     let canvas = web_sys::window()
         .and_then(|w| w.document())
@@ -66,8 +79,9 @@ pub fn start() -> Result<(), JsValue> {
 }
 
 /// `window.dfsph2d.state()`: the last frame's particles (fluid count), simulated time (s),
-/// mean x of the fluid (m), steps taken, real-time factor and frames per second, and the
-/// scene's name; `null` before the first frame.
+/// mean x of the fluid (m), steps taken, real-time factor and frames per second, the
+/// scene's name, and the solver's threads (the pool's size; 1 in the single-threaded build);
+/// `null` before the first frame.
 #[wasm_bindgen]
 pub fn state() -> JsValue {
     LAST_FRAME.with(|last| {
@@ -86,6 +100,11 @@ pub fn state() -> JsValue {
         set("realtime", r.realtime.into());
         set("fps", r.fps.into());
         set("scene", JsValue::from_str(&r.scene));
+        #[cfg(feature = "threads")]
+        let threads = rayon::current_num_threads();
+        #[cfg(not(feature = "threads"))]
+        let threads = 1;
+        set("threads", (threads as f64).into());
         o.into()
     })
 }

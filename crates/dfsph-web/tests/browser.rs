@@ -69,23 +69,24 @@ fn browser_tools() -> Option<(PathBuf, PathBuf)> {
 }
 
 /// Serve the files of `dir` (no subfolders) on 127.0.0.1, from a thread that lives as long
-/// as the test; returns the address's port.
-fn serve(dir: PathBuf) -> u16 {
+/// as the test; returns the address's port. `isolated`: with the headers that make the page
+/// cross-origin isolated, so that it loads its threaded build (`threads/`).
+fn serve(dir: PathBuf, isolated: bool) -> u16 {
     let listener = TcpListener::bind("127.0.0.1:0").expect("bind a local port");
     let port = listener.local_addr().unwrap().port();
     std::thread::spawn(move || {
         for stream in listener.incoming().flatten() {
             let dir = dir.clone();
             std::thread::spawn(move || {
-                let _ = answer(stream, &dir);
+                let _ = answer(stream, &dir, isolated);
             });
         }
     });
     port
 }
 
-/// Answer one HTTP request: GET of a file of `dir`, or 404.
-fn answer(mut stream: TcpStream, dir: &Path) -> std::io::Result<()> {
+/// Answer one HTTP request: GET of a file under `dir`, or 404.
+fn answer(mut stream: TcpStream, dir: &Path, isolated: bool) -> std::io::Result<()> {
     let mut reader = BufReader::new(stream.try_clone()?);
     let mut request = String::new();
     reader.read_line(&mut request)?;
@@ -108,16 +109,21 @@ fn answer(mut stream: TcpStream, dir: &Path) -> std::io::Result<()> {
         _ => None,
     };
     let file = kind
-        .filter(|_| method == "GET" && !name.contains('/') && !name.contains(".."))
+        .filter(|_| method == "GET" && !name.contains(".."))
         .and_then(|kind| Some((kind, std::fs::read(dir.join(name)).ok()?)));
     let (status, kind, body) = match file {
         Some((kind, body)) => ("200 OK", kind, body),
         None => ("404 Not Found", "text/plain", b"not found".to_vec()),
     };
+    let isolation = if isolated {
+        "Cross-Origin-Opener-Policy: same-origin\r\nCross-Origin-Embedder-Policy: require-corp\r\n"
+    } else {
+        ""
+    };
     write!(
         stream,
         "HTTP/1.1 {status}\r\nContent-Type: {kind}\r\nContent-Length: {}\r\n\
-         Cache-Control: no-store\r\nConnection: close\r\n\r\n",
+         {isolation}Cache-Control: no-store\r\nConnection: close\r\n\r\n",
         body.len()
     )?;
     stream.write_all(&body)?;
@@ -451,7 +457,10 @@ fn the_page_runs_draws_the_water_and_d_shakes_the_tank_right() {
     );
 
     let run_started = Instant::now();
-    let url = format!("http://127.0.0.1:{}/", serve(site.path().to_path_buf()));
+    let url = format!(
+        "http://127.0.0.1:{}/",
+        serve(site.path().to_path_buf(), false)
+    );
     let browser = Browser::start(&chromium, &chromedriver);
 
     // The shaken run: the key goes down at KEY_DOWN_AT s and stays down for HOLD s.
@@ -496,7 +505,42 @@ fn the_page_runs_draws_the_water_and_d_shakes_the_tank_right() {
     let realtime =
         (last.time - samples[0].time) / last.wall.duration_since(samples[0].wall).as_secs_f64();
     let still = mean_x_at(&samples, held.time);
+
+    // Served cross-origin isolated, the page loads its threaded build (when the site has
+    // one: build-web.sh skips it without a nightly toolchain, and says so) and steps the
+    // water on a pool of Web Workers.
+    let threaded = site.path().join("threads/dfsph_web.js").is_file();
+    let isolated = format!(
+        "http://127.0.0.1:{}/",
+        serve(site.path().to_path_buf(), true)
+    );
+    browser.open(&isolated);
+    let start = browser.wait_for_time(0.0, START_TIMEOUT, "starting isolated");
+    let on = browser.wait_for_time(start.time + 0.1, RUN_TIMEOUT, "running isolated");
+    let build = browser.eval("return window.dfsph2d.build;");
+    let threads = browser.eval("return window.dfsph2d.state().threads;");
+    let isolated_realtime =
+        (on.time - start.time) / on.wall.duration_since(start.wall).as_secs_f64();
     drop(browser);
+    eprintln!(
+        "browser test: isolated page: build {build}, {threads} pool threads, real-time factor \
+         {isolated_realtime:.3} (from {:.3} s to {:.3} s)",
+        start.time, on.time
+    );
+    assert_eq!(
+        on.particles, first.particles,
+        "the threaded page lost water"
+    );
+    if threaded {
+        assert_eq!(
+            build,
+            json!("threads"),
+            "the isolated page did not load threads/"
+        );
+        assert!(threads.as_f64().is_some_and(|n| n >= 1.0), "{threads}");
+    } else {
+        eprintln!("browser test: the site has no threaded build; the isolated page ran {build}");
+    }
     eprintln!(
         "browser test: real-time factor {realtime:.3} (simulated s per wall s, no key); \
          d held from {:.3} s to {:.3} s: mean x {:.3} m, {still:.3} m without the key \
