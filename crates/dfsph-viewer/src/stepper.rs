@@ -570,41 +570,47 @@ mod tests {
         assert_eq!(stepping_budget(5.0), MAX_FRAME_STEPPING);
     }
 
-    #[test]
-    fn the_frame_stepper_gives_the_bits_of_the_stepping_thread() {
-        let mut frames = FrameStepper::new(small_dam_break());
+    /// Rounds of `round` (send away at 4 x real time, bring home: the steps taken) until 30
+    /// steps or more were taken; how many.
+    fn at_least_30_steps(mut round: impl FnMut() -> usize) -> usize {
         let mut steps = 0;
         while steps < 30 {
-            frames.send_away(4.0);
-            std::thread::sleep(Duration::from_millis(5));
-            steps += frames.bring_home().steps.len();
+            steps += round();
         }
+        steps
+    }
+
+    /// The fingerprint of the small dam break after `steps` steps taken on this thread.
+    fn stepped_here(steps: usize) -> u64 {
         let mut here = small_dam_break();
         for _ in 0..steps {
             here.step();
         }
+        dfsph::recording::fingerprint(&here)
+    }
+
+    #[test]
+    fn the_frame_stepper_gives_the_bits_of_the_stepping_thread() {
+        let mut frames = FrameStepper::new(small_dam_break());
+        let steps = at_least_30_steps(|| {
+            frames.send_away(4.0);
+            std::thread::sleep(Duration::from_millis(5));
+            frames.bring_home().steps.len()
+        });
         assert_eq!(
             dfsph::recording::fingerprint(frames.home()),
-            dfsph::recording::fingerprint(&here)
+            stepped_here(steps)
         );
     }
 
     #[test]
     fn a_stepped_simulation_gives_the_bits_of_one_stepped_here() {
         let mut stepper = Stepper::new(small_dam_break());
-        let mut steps = 0;
-        while steps < 30 {
+        let steps = at_least_30_steps(|| {
             stepper.send_away(4.0);
             std::thread::sleep(Duration::from_millis(5));
-            steps += stepper.bring_home().steps.len();
-        }
-        let mut here = small_dam_break();
-        for _ in 0..steps {
-            here.step();
-        }
-        assert_eq!(
-            dfsph::recording::fingerprint(&stepper),
-            dfsph::recording::fingerprint(&here)
-        );
+            stepper.bring_home().steps.len()
+        });
+        assert_eq!(dfsph::recording::fingerprint(&stepper), stepped_here(steps));
     }
 }
