@@ -146,11 +146,35 @@ impl Quantizer {
     }
 }
 
+/// Where a GIF's bytes go: a file, atomically, or memory (a page's download).
+enum GifSink {
+    File(AtomicFile),
+    Memory(Vec<u8>),
+}
+
+impl Write for GifSink {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        match self {
+            GifSink::File(f) => f.write(buf),
+            GifSink::Memory(v) => v.write(buf),
+        }
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        match self {
+            GifSink::File(f) => f.flush(),
+            GifSink::Memory(_) => Ok(()),
+        }
+    }
+}
+
 /// An animated GIF written frame by frame to `NAME.tmp`, renamed to `NAME` by
-/// [`GifWriter::finish`]. Dropped unfinished (an error on the way), it removes `NAME.tmp`.
+/// [`GifWriter::finish`] (or kept in memory: [`GifWriter::in_memory`]). Dropped unfinished
+/// (an error on the way), it removes `NAME.tmp`.
 pub struct GifWriter {
-    path: PathBuf,
-    encoder: Option<gif::Encoder<AtomicFile>>,
+    /// `None`: in memory.
+    path: Option<PathBuf>,
+    encoder: Option<gif::Encoder<GifSink>>,
     size: (u32, u32),
     ticks: Ticks,
     quantizer: Quantizer,
@@ -162,8 +186,17 @@ pub struct GifWriter {
 impl GifWriter {
     /// A GIF at `path`; the file is created with the first frame, whose size is the video's.
     pub fn new(path: impl AsRef<Path>) -> Self {
+        Self::to(Some(path.as_ref().to_path_buf()))
+    }
+
+    /// A GIF kept in memory, for [`Self::finish_in_memory`] (the browser, which has no files).
+    pub fn in_memory() -> Self {
+        Self::to(None)
+    }
+
+    fn to(path: Option<PathBuf>) -> Self {
         Self {
-            path: path.as_ref().to_path_buf(),
+            path,
             encoder: None,
             size: (0, 0),
             ticks: Ticks::new(100.0, GIF_MIN_DELAY_CS),
@@ -172,6 +205,13 @@ impl GifWriter {
             indices: Vec::new(),
             frames: 0,
         }
+    }
+
+    /// What errors call the GIF: its file, or "the GIF" in memory.
+    fn name(&self) -> String {
+        self.path
+            .as_ref()
+            .map_or("the GIF".into(), |p| format!("`{}`", p.display()))
     }
 
     /// Frames written so far.
@@ -186,13 +226,16 @@ impl GifWriter {
             let (Ok(gw), Ok(gh)) = (u16::try_from(w), u16::try_from(h)) else {
                 return Err(anyhow!("a {w}x{h} frame is too large for a GIF"));
             };
-            let file = AtomicFile::create(&self.path)?;
+            let sink = match &self.path {
+                Some(path) => GifSink::File(AtomicFile::create(path)?),
+                None => GifSink::Memory(Vec::new()),
+            };
             let flat: Vec<u8> = self.quantizer.palette.iter().flatten().copied().collect();
-            let mut encoder = gif::Encoder::new(file, gw, gh, &flat)
-                .with_context(|| format!("cannot write `{}`", self.path.display()))?;
+            let mut encoder = gif::Encoder::new(sink, gw, gh, &flat)
+                .with_context(|| format!("cannot write {}", self.name()))?;
             encoder
                 .set_repeat(gif::Repeat::Infinite)
-                .with_context(|| format!("cannot write `{}`", self.path.display()))?;
+                .with_context(|| format!("cannot write {}", self.name()))?;
             self.encoder = Some(encoder);
             self.size = (w, h);
         }
@@ -221,23 +264,42 @@ impl GifWriter {
             buffer: std::borrow::Cow::Borrowed(&self.indices),
             ..gif::Frame::default()
         };
+        let name = self.name();
         let encoder = self.encoder.as_mut().expect("created above");
         encoder
             .write_frame(&frame)
-            .with_context(|| format!("cannot write `{}`", self.path.display()))?;
+            .with_context(|| format!("cannot write {name}"))?;
         self.frames += 1;
         Ok(())
     }
 
-    /// Write the GIF's trailer and rename it into place. Without frames, no file is written.
-    pub fn finish(mut self) -> Result<()> {
+    /// The GIF's trailer written, the sink it went to (`None` without frames).
+    fn close(mut self) -> Result<Option<GifSink>> {
+        let name = self.name();
         let Some(encoder) = self.encoder.take() else {
-            return Ok(());
+            return Ok(None);
         };
-        let file = encoder
+        let sink = encoder
             .into_inner()
-            .with_context(|| format!("cannot write `{}`", self.path.display()))?;
-        file.commit()
+            .with_context(|| format!("cannot write {name}"))?;
+        Ok(Some(sink))
+    }
+
+    /// Write the GIF's trailer and rename it into place. Without frames, no file is written.
+    pub fn finish(self) -> Result<()> {
+        match self.close()? {
+            Some(GifSink::File(file)) => file.commit(),
+            Some(GifSink::Memory(_)) | None => Ok(()),
+        }
+    }
+
+    /// Write the GIF's trailer and return the GIF (empty without frames).
+    pub fn finish_in_memory(self) -> Result<Vec<u8>> {
+        match self.close()? {
+            Some(GifSink::Memory(bytes)) => Ok(bytes),
+            Some(GifSink::File(_)) => Err(anyhow!("this GIF is written to a file")),
+            None => Ok(Vec::new()),
+        }
     }
 }
 
@@ -506,15 +568,27 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("v.gif");
         let mut w = GifWriter::new(&path);
+        let mut memory = GifWriter::in_memory();
+        assert!(GifWriter::in_memory()
+            .finish_in_memory()
+            .unwrap()
+            .is_empty());
         let mut a = Pixmap::new(40, 30).unwrap();
         a.fill(tiny_skia::Color::WHITE);
-        w.push(&a, 0.05).unwrap();
         // A different size is cropped/padded to the first frame's.
         let b = Pixmap::new(41, 29).unwrap();
-        w.push(&b, 0.05).unwrap();
+        for frame in [&a, &b] {
+            w.push(frame, 0.05).unwrap();
+            memory.push(frame, 0.05).unwrap();
+        }
         assert!(!path.exists(), "complete only once finished");
         w.finish().unwrap();
         assert!(!tmp_path(&path).exists());
+        // The browser's GIF, kept in memory, is the same file.
+        assert_eq!(
+            memory.finish_in_memory().unwrap(),
+            std::fs::read(&path).unwrap()
+        );
         let mut opts = gif::DecodeOptions::new();
         opts.set_color_output(gif::ColorOutput::RGBA);
         let mut d = opts.read_info(std::fs::File::open(&path).unwrap()).unwrap();

@@ -485,12 +485,6 @@ impl ViewerApp {
                 self.set_status(said);
             }
             Command::ToggleHelp => self.show_help = !self.show_help,
-            #[cfg(target_arch = "wasm32")]
-            Command::ToggleRecording => self.set_status(
-                "video recording is in the desktop viewer (dfsph2d view, V) and in \
-                 `dfsph2d run SCENE --format gif,mp4`",
-            ),
-            #[cfg(not(target_arch = "wasm32"))]
             Command::ToggleRecording => {
                 let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
                 let said = self.video.toggle(&self.sim, &dir);

@@ -83,7 +83,7 @@ const WEB_KEY_HELP: &[(&str, &str)] = &[
         "Ctrl+O or drop a .json",
         "open a scene file (the browser's picker)",
     ),
-    ("V", "video recording: in the desktop viewer (dfsph2d view)"),
+    ("V", "record / stop a GIF video, downloaded when stopped"),
 ];
 
 /// The help overlay's lines: [`KEY_HELP`] with the built-in scenes' keys after `R`.

@@ -22,7 +22,8 @@ const SCREENSHOT_HINT: &str = "F12: download the water as dfsph2d-<time>.png";
 #[cfg(not(target_arch = "wasm32"))]
 const RECORD_HINT: &str = "A GIF (and an MP4 with ffmpeg) of the simulation, at simulated speed, into the current directory (V)";
 #[cfg(target_arch = "wasm32")]
-const RECORD_HINT: &str = "Video recording is in the desktop viewer (dfsph2d view)";
+const RECORD_HINT: &str =
+    "A GIF of the simulation, at simulated speed, downloaded when you stop (V)";
 
 /// What the side panel reads and edits.
 pub struct PanelState<'a> {

@@ -11,11 +11,17 @@
 //! is written under a hidden temporary name and, once complete, given a timestamped name in
 //! the current directory, `dfsph2d-YYYYMMDD-HHMMSS.gif`, never replacing an existing file.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
+#[cfg(not(target_arch = "wasm32"))]
+use std::path::PathBuf;
+#[cfg(not(target_arch = "wasm32"))]
 use std::sync::mpsc;
+#[cfg(not(target_arch = "wasm32"))]
 use std::thread::JoinHandle;
 
-use anyhow::{anyhow, Context as _, Result};
+use anyhow::Result;
+#[cfg(not(target_arch = "wasm32"))]
+use anyhow::{anyhow, Context as _};
 use dfsph::{Simulation, Snapshot, Vec2};
 use dfsph_io::render::{RenderGeometry, RenderOptions};
 use dfsph_io::video::{GifWriter, Mp4Writer};
@@ -24,11 +30,13 @@ use dfsph_io::video::{GifWriter, Mp4Writer};
 pub const FRAME_INTERVAL: f64 = 0.04;
 /// Width of the recorded frames, pixels (`run`'s default PNG width).
 pub const FRAME_WIDTH: u32 = 800;
+#[cfg(not(target_arch = "wasm32"))]
 /// Frames waiting to be encoded at most. When the encoder falls behind (a large scene), a
 /// frame is skipped rather than queued without bound; the frame before it is then shown
 /// longer, so the video keeps simulated speed with fewer frames.
 const QUEUE: usize = 8;
 
+#[cfg(not(target_arch = "wasm32"))]
 /// What the encoding thread is sent.
 enum Message {
     Frame(Box<Frame>),
@@ -56,6 +64,7 @@ impl Frame {
     }
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 /// A recording in progress.
 pub struct Recording {
     messages: mpsc::SyncSender<Message>,
@@ -64,6 +73,7 @@ pub struct Recording {
     last: f64,
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 /// The viewer's recorder: idle, recording, or finishing a recording on its thread.
 #[derive(Default)]
 pub struct VideoRecorder {
@@ -72,6 +82,7 @@ pub struct VideoRecorder {
     finishing: Vec<JoinHandle<Result<Vec<PathBuf>>>>,
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 impl VideoRecorder {
     /// True while recording.
     pub fn is_recording(&self) -> bool {
@@ -165,6 +176,7 @@ impl VideoRecorder {
     }
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 fn report(joined: std::thread::Result<Result<Vec<PathBuf>>>) -> String {
     match joined {
         Ok(Ok(paths)) if paths.is_empty() => "recording ended without frames".into(),
@@ -177,6 +189,76 @@ fn report(joined: std::thread::Result<Result<Vec<PathBuf>>>) -> String {
     }
 }
 
+/// Draws recorded frames and writes each once the next one (or the stop) says how long it is
+/// shown: the window's encoding thread and the page's recorder share it.
+struct FrameEncoder {
+    gif: GifWriter,
+    mp4: Option<Mp4Writer>,
+    options: RenderOptions,
+    decimals: usize,
+    /// The frame drawn last, waiting for the next one's time to know how long it is shown.
+    pending: Option<(tiny_skia::Pixmap, f64)>,
+}
+
+impl FrameEncoder {
+    fn new(gif: GifWriter, mp4: Option<Mp4Writer>, options: RenderOptions) -> Self {
+        Self {
+            gif,
+            mp4,
+            options,
+            decimals: dfsph_io::video::stamp_decimals(FRAME_INTERVAL),
+            pending: None,
+        }
+    }
+
+    /// Draw `frame` with its time stamped; write the one before it.
+    fn frame(&mut self, frame: &Frame) -> Result<()> {
+        let geometry = RenderGeometry {
+            tank_min: frame.tank.0,
+            tank_max: frame.tank.1,
+            boundary: &frame.boundary,
+            particle_radius: frame.radius,
+        };
+        let mut picture = dfsph_io::render_frame(&geometry, &frame.snapshot, &self.options)?;
+        let time = frame.snapshot.time;
+        dfsph_io::render::stamp_time(&mut picture, time, self.decimals);
+        if let Some((previous, t0)) = self.pending.take() {
+            // After a reset time starts again: the frame gets the usual interval.
+            let shown = if time > t0 { time - t0 } else { FRAME_INTERVAL };
+            self.write(&previous, shown)?;
+        }
+        self.pending = Some((picture, time));
+        Ok(())
+    }
+
+    /// Stopped at simulated `time`: the last frame is shown until then, and at least one
+    /// frame interval (stopping right after it must not make it flash by).
+    fn stop(&mut self, time: f64) -> Result<()> {
+        match self.pending.take() {
+            Some((last, t0)) => self.write(&last, (time - t0).max(FRAME_INTERVAL)),
+            None => Ok(()),
+        }
+    }
+
+    /// Ended without a stop: the last frame is shown for one interval.
+    #[cfg(not(target_arch = "wasm32"))]
+    fn stop_unannounced(&mut self) -> Result<()> {
+        match self.pending.take() {
+            Some((last, _)) => self.write(&last, FRAME_INTERVAL),
+            None => Ok(()),
+        }
+    }
+
+    fn write(&mut self, picture: &tiny_skia::Pixmap, shown: f64) -> Result<()> {
+        self.gif.push(picture, shown)?;
+        if let Some(mp4) = self.mp4.as_mut() {
+            mp4.push(picture, shown)?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(not(target_arch = "wasm32"))]
 /// The encoding thread: draws each frame, stamps its time and writes it once the next frame
 /// (or the stop) says how long it lasts; then names the files.
 fn encode(
@@ -197,54 +279,20 @@ fn encode(
     );
     let gif_tmp = dir.join(format!("{unique}.gif"));
     let mp4_tmp = dir.join(format!("{unique}.mp4"));
-    let mut gif = GifWriter::new(&gif_tmp);
-    let mut mp4 = ffmpeg.map(|f| Mp4Writer::new(&mp4_tmp, f, FRAME_INTERVAL));
-    let decimals = dfsph_io::video::stamp_decimals(FRAME_INTERVAL);
-    // The frame drawn last, waiting for the next one's time to know how long it is shown.
-    let mut pending: Option<(tiny_skia::Pixmap, f64)> = None;
+    let mp4 = ffmpeg.map(|f| Mp4Writer::new(&mp4_tmp, f, FRAME_INTERVAL));
+    let mut encoder = FrameEncoder::new(GifWriter::new(&gif_tmp), mp4, options);
     for message in inbox {
-        let (picture, time) = match message {
-            Message::Frame(frame) => {
-                let geometry = RenderGeometry {
-                    tank_min: frame.tank.0,
-                    tank_max: frame.tank.1,
-                    boundary: &frame.boundary,
-                    particle_radius: frame.radius,
-                };
-                let mut picture = dfsph_io::render_frame(&geometry, &frame.snapshot, &options)?;
-                dfsph_io::render::stamp_time(&mut picture, frame.snapshot.time, decimals);
-                (Some(picture), frame.snapshot.time)
+        match message {
+            Message::Frame(frame) => encoder.frame(&frame)?,
+            Message::Stop(time) => {
+                encoder.stop(time)?;
+                break;
             }
-            Message::Stop(time) => (None, time),
-        };
-        if let Some((previous, t0)) = pending.take() {
-            let shown = if picture.is_none() {
-                // Stopped: the last frame is shown until the stop, and at least one frame
-                // interval (stopping right after it must not make it flash by).
-                (time - t0).max(FRAME_INTERVAL)
-            } else if time > t0 {
-                time - t0
-            } else {
-                // After a reset time starts again: the frame gets the usual interval.
-                FRAME_INTERVAL
-            };
-            gif.push(&previous, shown)?;
-            if let Some(mp4) = mp4.as_mut() {
-                mp4.push(&previous, shown)?;
-            }
-        }
-        match picture {
-            Some(p) => pending = Some((p, time)),
-            None => break,
         }
     }
     // The window went away without a stop (it panicked): keep what was recorded.
-    if let Some((previous, _)) = pending.take() {
-        gif.push(&previous, FRAME_INTERVAL)?;
-        if let Some(mp4) = mp4.as_mut() {
-            mp4.push(&previous, FRAME_INTERVAL)?;
-        }
-    }
+    encoder.stop_unannounced()?;
+    let FrameEncoder { gif, mp4, .. } = encoder;
     let mut saved = Vec::new();
     if gif.frames() > 0 {
         gif.finish()?;
@@ -260,6 +308,7 @@ fn encode(
     Ok(saved)
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 /// Give the finished `file` its name: `first` when given and free (the MP4 takes the GIF's
 /// name), else `dfsph2d-YYYYMMDD-HHMMSS.EXT` in `dir` (`-2`, `-3`, … when taken). A hard link
 /// fails rather than replace a file that appeared meanwhile.
@@ -289,6 +338,109 @@ fn place(file: &Path, dir: &Path, ext: &str, first: Option<PathBuf>) -> Result<P
         }
     }
     Err(anyhow!("no free name for the video in `{}`", dir.display()))
+}
+
+/// The page's recorder: each frame drawn and encoded when it is captured (the page has no
+/// thread to spare; a frame costs the page some tens of milliseconds every 0.04 s of
+/// simulated time), the GIF kept in memory and downloaded as `dfsph2d-<time>.gif` when the
+/// recording stops. No MP4: the browser has no ffmpeg.
+#[cfg(target_arch = "wasm32")]
+#[derive(Default)]
+pub struct VideoRecorder {
+    recording: Option<PageRecording>,
+    /// What to tell the user at the next [`Self::poll`] (a recording that failed).
+    said: Option<String>,
+}
+
+/// A recording in progress in the page.
+#[cfg(target_arch = "wasm32")]
+struct PageRecording {
+    encoder: FrameEncoder,
+    /// Simulated time of the last frame captured.
+    last: f64,
+}
+
+#[cfg(target_arch = "wasm32")]
+impl VideoRecorder {
+    /// True while recording.
+    pub fn is_recording(&self) -> bool {
+        self.recording.is_some()
+    }
+
+    /// Start recording (with the simulation's current state as the first frame), or stop and
+    /// download the GIF. Returns what to tell the user. (`_dir`: the page has none.)
+    pub fn toggle(&mut self, sim: &Simulation, _dir: &Path) -> String {
+        if let Some(recording) = self.recording.take() {
+            return download(recording, sim.time());
+        }
+        let options = RenderOptions {
+            width: FRAME_WIDTH,
+            speed_max: dfsph_io::render::speed_scale(sim.scene()),
+        };
+        let mut encoder = FrameEncoder::new(GifWriter::in_memory(), None, options);
+        match encoder.frame(&Frame::of(sim)) {
+            Ok(()) => {
+                self.recording = Some(PageRecording {
+                    encoder,
+                    last: sim.time(),
+                });
+                "recording a GIF (V or Stop to end and download it)".into()
+            }
+            Err(e) => format!("cannot start recording: {e:#}"),
+        }
+    }
+
+    /// Called every frame with the simulation at home: draws and encodes a frame when
+    /// simulated time has moved on by [`FRAME_INTERVAL`] (or went back: a reset).
+    pub fn capture(&mut self, sim: &Simulation) {
+        let Some(recording) = &mut self.recording else {
+            return;
+        };
+        let t = sim.time();
+        if t >= recording.last + FRAME_INTERVAL || t < recording.last {
+            recording.last = t;
+            if let Err(e) = recording.encoder.frame(&Frame::of(sim)) {
+                self.recording = None;
+                self.said = Some(format!("recording failed: {e:#}"));
+            }
+        }
+    }
+
+    /// A recording that failed since the last call.
+    pub fn poll(&mut self) -> Option<String> {
+        self.said.take()
+    }
+
+    /// Stop recording and download what was recorded (the page is closing).
+    pub fn finish_all(&mut self, time: f64) -> Vec<String> {
+        self.recording
+            .take()
+            .map(|recording| download(recording, time))
+            .into_iter()
+            .collect()
+    }
+}
+
+/// End `recording` at simulated `time` and hand the GIF to the browser as a download.
+#[cfg(target_arch = "wasm32")]
+fn download(recording: PageRecording, time: f64) -> String {
+    let mut encoder = recording.encoder;
+    let gif = encoder.stop(time).and_then(|()| {
+        let frames = encoder.gif.frames();
+        let FrameEncoder { gif, .. } = encoder;
+        gif.finish_in_memory().map(|bytes| (bytes, frames))
+    });
+    let secs = web_time::SystemTime::now()
+        .duration_since(web_time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let name = format!("dfsph2d-{}.gif", crate::export::utc_stamp(secs));
+    match gif {
+        Ok((bytes, frames)) => match crate::web::download(&name, "image/gif", &bytes) {
+            Ok(()) => format!("downloaded {name} ({frames} frames)"),
+            Err(e) => format!("the browser refused the download: {e}"),
+        },
+        Err(e) => format!("recording failed: {e:#}"),
+    }
 }
 
 #[cfg(test)]
