@@ -44,6 +44,12 @@ enum Message {
     Stop(f64),
 }
 
+/// Whether a frame is due at simulated time `t` after one at `last`: simulated time has moved
+/// on by [`FRAME_INTERVAL`], or went back (a reset).
+fn frame_due(last: f64, t: f64) -> bool {
+    t >= last + FRAME_INTERVAL || t < last
+}
+
 /// A copy of what one frame draws.
 struct Frame {
     snapshot: Snapshot,
@@ -136,7 +142,7 @@ impl VideoRecorder {
             return;
         };
         let t = sim.time();
-        if t >= rec.last + FRAME_INTERVAL || t < rec.last {
+        if frame_due(rec.last, t) {
             match rec
                 .messages
                 .try_send(Message::Frame(Box::new(Frame::of(sim))))
@@ -397,7 +403,7 @@ impl VideoRecorder {
             return;
         };
         let t = sim.time();
-        if t >= recording.last + FRAME_INTERVAL || t < recording.last {
+        if frame_due(recording.last, t) {
             recording.last = t;
             if let Err(e) = recording.encoder.frame(&Frame::of(sim)) {
                 self.recording = None;
