@@ -41,10 +41,7 @@ pub fn timestamped_png(dir: &Path) -> PathBuf {
 
 /// `dfsph2d-YYYYMMDD-HHMMSS.EXT` (UTC) in `dir`, with `-2`, `-3`, ... appended when taken.
 pub fn timestamped_file(dir: &Path, ext: &str) -> PathBuf {
-    let secs = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    let stem = format!("dfsph2d-{}", utc_stamp(secs));
+    let stem = format!("dfsph2d-{}", utc_stamp_now());
     let mut path = dir.join(format!("{stem}.{ext}"));
     let mut k = 2;
     while path.exists() {
@@ -68,13 +65,19 @@ pub fn download_rendered_png(sim: &dfsph::Simulation) -> anyhow::Result<String> 
     let png = picture
         .encode_png()
         .map_err(|e| anyhow::anyhow!("cannot encode the PNG: {e}"))?;
-    let secs = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    let name = format!("dfsph2d-{}.png", utc_stamp(secs));
+    let name = format!("dfsph2d-{}.png", utc_stamp_now());
     crate::web::download(&name, "image/png", &png)
         .map_err(|e| anyhow::anyhow!("the browser refused the download: {e}"))?;
     Ok(name)
+}
+
+/// `YYYYMMDD-HHMMSS` now, UTC: the stamp in the names of the files the viewer writes or
+/// downloads.
+pub(crate) fn utc_stamp_now() -> String {
+    let secs = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    utc_stamp(secs)
 }
 
 /// `YYYYMMDD-HHMMSS` for seconds since the Unix epoch, UTC.

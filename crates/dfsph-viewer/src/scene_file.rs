@@ -7,7 +7,6 @@
 use std::path::{Path, PathBuf};
 #[cfg(not(target_arch = "wasm32"))]
 use std::sync::Arc;
-use web_time::{SystemTime, UNIX_EPOCH};
 
 use anyhow::{anyhow, Context as _};
 use dfsph::{Scene, Simulation};
@@ -72,10 +71,7 @@ pub fn write_scene(path: &Path, scene: &Scene) -> anyhow::Result<()> {
 /// Save `scene` as `scene-YYYYMMDD-HHMMSS.json` (UTC) in `dir`, with `-2`, `-3`, ... when
 /// that name is taken; never overwrites a file. Returns the path written.
 pub fn save_timestamped(dir: &Path, scene: &Scene) -> anyhow::Result<PathBuf> {
-    let secs = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    let stem = format!("scene-{}", crate::export::utc_stamp(secs));
+    let stem = format!("scene-{}", crate::export::utc_stamp_now());
     for k in 1..10_000 {
         let path = match k {
             1 => dir.join(format!("{stem}.json")),
@@ -167,10 +163,7 @@ pub fn save_state(scene: &Scene) -> anyhow::Result<String> {
     }
     #[cfg(target_arch = "wasm32")]
     {
-        let secs = SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .map_or(0, |d| d.as_secs());
-        let name = format!("scene-{}.json", crate::export::utc_stamp(secs));
+        let name = format!("scene-{}.json", crate::export::utc_stamp_now());
         crate::web::download(
             &name,
             "application/json",

@@ -436,10 +436,7 @@ fn download(recording: PageRecording, time: f64) -> String {
         let FrameEncoder { gif, .. } = encoder;
         gif.finish_in_memory().map(|bytes| (bytes, frames))
     });
-    let secs = web_time::SystemTime::now()
-        .duration_since(web_time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    let name = format!("dfsph2d-{}.gif", crate::export::utc_stamp(secs));
+    let name = format!("dfsph2d-{}.gif", crate::export::utc_stamp_now());
     match gif {
         Ok((bytes, frames)) => match crate::web::download(&name, "image/gif", &bytes) {
             Ok(()) => format!("downloaded {name} ({frames} frames)"),

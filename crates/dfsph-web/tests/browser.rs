@@ -46,15 +46,14 @@ fn on_path(name: &str) -> Option<PathBuf> {
 
 /// Chromium and chromedriver, or `None` (with a message) where they are not installed.
 fn browser_tools() -> Option<(PathBuf, PathBuf)> {
-    let chromium = [Path::new("/usr/bin/chromium").to_path_buf()]
-        .into_iter()
-        .find(|p| p.is_file())
-        .or_else(|| on_path("chromium"));
-    let driver = on_path("chromedriver").or_else(|| {
-        let p = PathBuf::from("/usr/bin/chromedriver");
-        p.is_file().then_some(p)
-    });
-    let found = chromium.zip(driver);
+    // On PATH, or where Debian's packages put them.
+    let tool = |name: &str| {
+        on_path(name).or_else(|| {
+            let p = Path::new("/usr/bin").join(name);
+            p.is_file().then_some(p)
+        })
+    };
+    let found = tool("chromium").zip(tool("chromedriver"));
     assert!(
         found.is_some() || std::env::var_os("CI").is_none(),
         "CI installs chromium and chromedriver (.ci/run); they are missing"
