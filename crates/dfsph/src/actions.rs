@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use crate::boundary::{Body, BodyId, BoundarySamples};
 use crate::forces::PointerForce;
 use crate::neighbors::Grid;
+use crate::rigid::{BodySpec, MAX_BODIES};
 use crate::scene::{Scene, SolverParams, TimeStepParams, ViscosityParams};
 use crate::simulation::Simulation;
 
@@ -43,6 +44,16 @@ pub enum Action {
     AddWall { polyline: Vec<Vec2> },
     /// Remove fluid and drawn walls (not the tank) within `radius` of `at`.
     Erase { at: Vec2, radius: f32 },
+    /// Drop a rigid body into the tank ([`crate::rigid`]): validated like a scene's `bodies`
+    /// entry; fluid it covers is removed.
+    AddBody { body: BodySpec },
+    /// Take hold of the rigid body under `at` (m), until [`Action::ReleaseBody`]; rejected
+    /// when there is none.
+    GrabBody { at: Vec2 },
+    /// Pull the held body's grabbed point towards `target` (m).
+    DragBody { target: Vec2 },
+    /// Let go of the held body.
+    ReleaseBody,
     /// Replace the solver parameters (tolerances, iterations, method, ...).
     SetSolver { solver: SolverParams },
     /// Replace the viscosity parameters.
@@ -144,6 +155,36 @@ impl Simulation {
                     out.boundary_change = -(walls as isize);
                 } else {
                     out.rejected = Some("erase needs a finite position and radius > 0");
+                }
+            }
+            Action::AddBody { body } => {
+                if let Err(e) = self.add_body(body) {
+                    out.rejected = Some(e);
+                } else {
+                    let (removed, added) = self.last_body_change;
+                    out.removed = removed;
+                    out.boundary_change = added as isize;
+                }
+            }
+            Action::GrabBody { at } => {
+                let grabbed = at
+                    .is_finite()
+                    .then(|| self.rigid.as_mut().and_then(|r| r.grab(*at)))
+                    .flatten();
+                if grabbed.is_none() {
+                    out.rejected = Some("no body there");
+                }
+            }
+            Action::DragBody { target } => {
+                let held =
+                    target.is_finite() && self.rigid.as_mut().is_some_and(|r| r.drag_to(*target));
+                if !held {
+                    out.rejected = Some("no body held, or a non-finite target");
+                }
+            }
+            Action::ReleaseBody => {
+                if let Some(r) = &mut self.rigid {
+                    r.release();
                 }
             }
             Action::SetSolver { solver } => {
@@ -287,6 +328,40 @@ impl Simulation {
         (removed, added)
     }
 
+    /// Add a rigid body where the tank stands now, removing the fluid it covers; the counts
+    /// go to `last_body_change`.
+    fn add_body(&mut self, spec: &BodySpec) -> Result<(), &'static str> {
+        if self.rigid_body_count() >= MAX_BODIES || self.bodies.len() >= BodyId::MAX as usize {
+            return Err("too many bodies");
+        }
+        if spec
+            .validate("body", self.scene.spacing(), &self.scene.tank)
+            .is_err()
+        {
+            return Err("invalid body: it must fit in the tank, be 3 spacings across and have a density of 50–25,000 kg/m³");
+        }
+        let offset = self.bodies[0].offset;
+        let centre = Vec2::new(spec.position[0] as f32, spec.position[1] as f32) + offset;
+        if self
+            .rigid
+            .as_ref()
+            .is_some_and(|r| (0..r.len()).any(|k| r.signed_distance(k, centre) < 0.0))
+        {
+            return Err("another body is there");
+        }
+        let before = self.boundary.len();
+        let k = self.add_rigid_body(spec);
+        let rigid = self.rigid.as_ref().expect("a body was just added");
+        let d = self.spacing;
+        let margin = 0.5 * d * (1.0 - 1.0e-3);
+        let pos = self.fluid.position.clone();
+        let removed = self
+            .fluid
+            .retain(|i| rigid.signed_distance(k, pos[i]) >= margin);
+        self.last_body_change = (removed, self.boundary.len() - before);
+        Ok(())
+    }
+
     /// Remove fluid and drawn-wall particles near a point; returns (fluid, wall) counts.
     fn erase(&mut self, at: Vec2, radius: f32) -> (usize, usize) {
         let r2 = radius * radius;
@@ -294,7 +369,12 @@ impl Simulation {
         let removed = self.fluid.retain(|i| (pos[i] - at).length_squared() >= r2);
         let b = &self.boundary;
         let keep: Vec<bool> = (0..b.len())
-            .map(|k| b.body[k] == 0 || (b.position[k] - at).length_squared() >= r2)
+            .map(|k| {
+                let body = b.body[k];
+                body == 0
+                    || self.bodies[body as usize].rigid.is_some()
+                    || (b.position[k] - at).length_squared() >= r2
+            })
             .collect();
         let walls = self.boundary.retain(&keep);
         if walls > 0 {

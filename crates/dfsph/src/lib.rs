@@ -41,6 +41,7 @@ pub mod probes;
 pub mod recording;
 pub(crate) mod reduce;
 pub(crate) mod retry;
+pub mod rigid;
 pub mod saved;
 pub mod scene;
 pub mod settings;

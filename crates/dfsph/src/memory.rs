@@ -103,9 +103,9 @@ impl MemoryEstimate {
 }
 
 impl Scene {
-    /// Boundary particles the tank and the obstacles are sampled with: two layers around
-    /// the tank, corners filled, and [`Scene::validate`]'s estimate for the obstacles (an
-    /// upper bound, within a few per cent).
+    /// Boundary particles the tank, the obstacles and the rigid bodies are sampled with: two
+    /// layers around the tank, corners filled, [`Scene::validate`]'s estimate for the
+    /// obstacles and two layers round each body (an upper bound).
     pub fn boundary_particle_estimate(&self) -> u64 {
         let d = self.spacing();
         let (w, h) = (
@@ -131,7 +131,17 @@ impl Scene {
                 Obstacle::Particles { positions } => positions.len() as f64,
             })
             .sum();
-        (tank + obstacles).ceil().min(u64::MAX as f64) as u64
+        // Rigid bodies: two layers along their outline (a circle's perimeter bounds a box's
+        // within its bounding circle).
+        let bodies: f64 = self
+            .bodies
+            .iter()
+            .map(|b| {
+                let e = b.half_extent();
+                2.0 * std::f64::consts::TAU * e[0].hypot(e[1]) / d + 8.0
+            })
+            .sum();
+        (tank + obstacles + bodies).ceil().min(u64::MAX as f64) as u64
     }
 
     /// The memory a simulation of this scene needs with its own fluid particles

@@ -119,6 +119,8 @@ pub struct BoundaryParticles {
     pub volume: Vec<f32>,
     /// Owning body.
     pub body: Vec<BodyId>,
+    /// Position in its rigid body's frame, m (zero for the tank, obstacles and walls).
+    pub local: Vec<Vec2>,
 }
 
 impl BoundaryParticles {
@@ -139,6 +141,7 @@ impl BoundaryParticles {
         filter(&mut self.velocity, keep);
         filter(&mut self.volume, keep);
         filter(&mut self.body, keep);
+        filter(&mut self.local, keep);
         before - self.len()
     }
 
@@ -148,5 +151,6 @@ impl BoundaryParticles {
         permute(&mut self.velocity, order, &mut scratch.vec2);
         permute(&mut self.volume, order, &mut scratch.float);
         permute(&mut self.body, order, &mut scratch.body);
+        permute(&mut self.local, order, &mut scratch.vec2);
     }
 }

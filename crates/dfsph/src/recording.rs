@@ -402,7 +402,8 @@ impl<W: Write> Recorder<W> {
 }
 
 /// A 64-bit FNV-1a hash of the simulation state that matters for a replay: time, step count,
-/// and every fluid particle's id, position and velocity, bit for bit.
+/// every fluid particle's id, position and velocity, and every rigid body's position, angle
+/// and velocities, bit for bit.
 pub fn fingerprint(sim: &Simulation) -> u64 {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     let mut eat = |bytes: &[u8]| {
@@ -417,6 +418,12 @@ pub fn fingerprint(sim: &Simulation) -> u64 {
     for ((id, x), v) in sim.ids().iter().zip(sim.positions()).zip(sim.velocities()) {
         eat(&id.to_le_bytes());
         for c in [x.x, x.y, v.x, v.y] {
+            eat(&c.to_bits().to_le_bytes());
+        }
+    }
+    for b in sim.rigid_bodies() {
+        let (x, v) = (b.position, b.velocity);
+        for c in [x.x, x.y, b.angle, v.x, v.y, b.angular_velocity] {
             eat(&c.to_bits().to_le_bytes());
         }
     }

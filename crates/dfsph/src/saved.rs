@@ -55,20 +55,32 @@ impl Simulation {
             by_body[b as usize].push(p - tank_offset);
         }
         let d = self.spacing;
-        let first_drawn = 1 + self.scene.obstacles.len();
+        // Body ids: the tank, the scene's obstacles and rigid bodies, then the walls drawn
+        // and the bodies dropped since, in the order they came.
+        let mut drawn = 0;
+        let drawn_index: Vec<usize> = self
+            .bodies
+            .iter()
+            .enumerate()
+            .map(|(body, b)| {
+                let wall = body > self.scene.obstacles.len() && b.rigid.is_none();
+                drawn += wall as usize;
+                drawn.saturating_sub(1)
+            })
+            .collect();
         scene.obstacles = by_body
             .iter()
             .enumerate()
             .skip(1)
-            .filter(|(_, left)| !left.is_empty())
+            .filter(|&(body, left)| !left.is_empty() && self.bodies[body].rigid.is_none())
             .map(|(body, left)| {
-                let whole = if body < first_drawn {
+                let whole = if body <= self.scene.obstacles.len() {
                     self.scene.obstacles[body - 1].clone()
                 } else {
                     // A drawn wall moves with the tank from the moment it was drawn.
                     let shift = self.bodies[body].offset - tank_offset;
                     Obstacle::Polyline {
-                        points: self.drawn_walls[body - first_drawn]
+                        points: self.drawn_walls[drawn_index[body]]
                             .iter()
                             .map(|&p| point(p + shift))
                             .collect(),
@@ -81,6 +93,16 @@ impl Simulation {
                         positions: left.iter().map(|&p| point(p)).collect(),
                     }
                 }
+            })
+            .collect();
+        // The rigid bodies as they stand: where they are, turned and moving as they are.
+        scene.bodies = self
+            .rigid_bodies()
+            .into_iter()
+            .map(|b| {
+                let mut spec = b.spec;
+                spec.position = point(b.position - tank_offset);
+                spec
             })
             .collect();
         scene

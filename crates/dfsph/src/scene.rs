@@ -6,6 +6,7 @@
 use serde::{Deserialize, Serialize};
 
 pub use crate::probes::Probe;
+pub use crate::rigid::spec::{BodyJoint, BodyShape, BodySpec};
 
 /// A point or vector in metres (or m/s², for gravity), as `[x, y]` in JSON.
 pub type Point = [f64; 2];
@@ -39,6 +40,10 @@ pub struct Scene {
     pub packing: Packing,
     /// Static obstacles inside the tank, sampled as boundary particles.
     pub obstacles: Vec<Obstacle>,
+    /// Rigid bodies that float, sink and tumble, two-way coupled with the fluid
+    /// ([`crate::rigid`]). Left out of the JSON when empty.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub bodies: Vec<BodySpec>,
     /// Pressure solver and its tolerances.
     pub solver: SolverParams,
     /// Adaptive (CFL) time stepping.
@@ -235,6 +240,7 @@ impl Default for Scene {
             particles: ParticleList::default(),
             packing: Packing::Square,
             obstacles: Vec::new(),
+            bodies: Vec::new(),
             solver: SolverParams::default(),
             time_step: TimeStepParams::default(),
             viscosity: ViscosityParams::default(),
@@ -854,6 +860,19 @@ impl Scene {
         }
         self.check_block_overlaps()?;
         self.check_particles()?;
+        if self.bodies.len() > crate::rigid::MAX_BODIES {
+            return Err(invalid(
+                "bodies",
+                format!(
+                    "{} bodies, more than the {} a scene may have",
+                    self.bodies.len(),
+                    crate::rigid::MAX_BODIES
+                ),
+            ));
+        }
+        for (i, b) in self.bodies.iter().enumerate() {
+            b.validate(&format!("bodies[{i}]"), d, &self.tank)?;
+        }
         for (i, o) in self.obstacles.iter().enumerate() {
             let key = format!("obstacles[{i}]");
             match o {

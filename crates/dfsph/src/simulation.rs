@@ -15,6 +15,8 @@ use crate::packing;
 use crate::particles::{BoundaryParticles, FluidParticles, Scratch};
 use crate::pressure::{self, PressureSolver, SolveReport};
 use crate::retry::{AttemptCheck, Attempts, DensityStep};
+use crate::rigid::coupling::{self, WallTerms};
+use crate::rigid::{BodySpec, RigidBodies, RigidBodyState};
 use crate::scene::{Method, Obstacle, Packing, PressureSolve, Scene, SceneError};
 use crate::settings::SolverSettings;
 use crate::solver::{self, Neighborhood, PairCache, Walls};
@@ -131,6 +133,10 @@ pub struct Simulation {
     pub(crate) shake_drive: f32,
     /// When the last [`Self::step`] returned.
     last_step_end: Option<Instant>,
+    /// The rigid bodies and their world, from the first body on.
+    pub(crate) rigid: Option<RigidBodies>,
+    /// Fluid removed and boundary particles added by the last [`crate::Action::AddBody`].
+    pub(crate) last_body_change: (usize, usize),
 }
 
 /// Particle data in creation order, for output.
@@ -204,6 +210,8 @@ impl Simulation {
             pointer: None,
             last_step_end: None,
             shake_drive: 0.0,
+            rigid: None,
+            last_body_change: (0, 0),
         };
         let mut samples = BoundarySamples::default();
         if hexagonal {
@@ -236,11 +244,16 @@ impl Simulation {
                 }
             }
         }
+        for spec in &scene.bodies {
+            sim.add_rigid_body(spec);
+        }
         // Lattice sites the obstacles cover stay empty: inside a solid box, or closer than one
         // spacing to an obstacle's wall particles (the rule for walls drawn over water, see
         // `add_wall`). Fluid there would start crushed into the wall.
         let mut obstacle_grid = Grid::new(d);
         obstacle_grid.build(&samples.positions[tank_samples..]);
+        // Taken out while the fluid is placed, put back after.
+        let bodies = sim.rigid.take();
         let covered = |p: Vec2| {
             let inside_box = scene.obstacles.iter().any(|o| match o {
                 Obstacle::Rect { min, max } => {
@@ -248,7 +261,9 @@ impl Simulation {
                 }
                 Obstacle::Polyline { .. } | Obstacle::Particles { .. } => false,
             });
-            inside_box || obstacle_grid.any_near(p)
+            inside_box
+                || obstacle_grid.any_near(p)
+                || bodies.as_ref().is_some_and(|r| r.covers(p, d))
         };
         sim.fluid.reserve(scene.fluid_particle_count());
         for block in scene.fluid.iter().filter(|_| hexagonal) {
@@ -295,6 +310,7 @@ impl Simulation {
             sim.fluid
                 .push(to_vec2(p), to_vec2(scene.particles.velocity(i)), id);
         }
+        sim.rigid = bodies;
         sim.add_boundary_samples(samples);
         if let Some(p) = sim
             .pressure
@@ -306,6 +322,38 @@ impl Simulation {
         Ok(sim)
     }
 
+    /// Add a rigid body (validated) with its boundary particles; returns its index. Fluid it
+    /// covers is left to the caller.
+    pub(crate) fn add_rigid_body(&mut self, spec: &BodySpec) -> usize {
+        let (lo, hi) = (to_vec2(self.scene.tank.min), to_vec2(self.scene.tank.max));
+        let rigid = self
+            .rigid
+            .get_or_insert_with(|| RigidBodies::new(lo, hi, self.gravity));
+        let body_id = self.bodies.len() as BodyId;
+        let tank = self.bodies[0];
+        let (k, local, volume) = rigid.add(
+            spec,
+            tank.offset,
+            self.spacing,
+            &self.kernel,
+            self.scene.rest_density as f32,
+        );
+        self.bodies.push(Body {
+            rigid: Some(k as u16),
+            ..Default::default()
+        });
+        for (q, v) in local.into_iter().zip(volume) {
+            let (x, u) = rigid.point_motion(k, q);
+            self.boundary.position.push(x);
+            self.boundary.velocity.push(u);
+            self.boundary.volume.push(v);
+            self.boundary.body.push(body_id);
+            self.boundary.local.push(q);
+        }
+        self.boundary_changed = true;
+        k
+    }
+
     pub(crate) fn add_boundary_samples(&mut self, samples: BoundarySamples) {
         let cell = self.spacing * self.spacing;
         let n = samples.positions.len();
@@ -313,6 +361,7 @@ impl Simulation {
         self.boundary.velocity.reserve_exact(n);
         self.boundary.volume.reserve_exact(n);
         self.boundary.body.reserve_exact(n);
+        self.boundary.local.reserve_exact(n);
         for ((p, b), area) in samples
             .positions
             .into_iter()
@@ -328,6 +377,7 @@ impl Simulation {
                 .volume
                 .push(area.map_or(0.0, |a| self.volume * a / cell));
             self.boundary.body.push(b);
+            self.boundary.local.push(Vec2::ZERO);
         }
         self.boundary_changed = true;
     }
@@ -478,9 +528,14 @@ impl Simulation {
         // Lines 6, 8 and 9, Algorithm 3: non-pressure forces, predicted velocities and the
         // density solve, redone with half the Δt while the step is unsound.
         let density = self.density_solve_until_sound(cfl_dt.min(self.retry_dt_limit));
-        // Line 10: advect (and move the walls); put back what left the tank.
+        // The rigid bodies take what their walls gave the fluid in both solves.
+        let impulses = self.rigid_body_impulses(density.dt);
+        // Line 10: advect (and move the walls and the bodies); put back what left the tank
+        // or entered a body.
         self.advect(density.dt);
+        self.move_rigid_bodies(density.dt, &impulses);
         let (clamped, non_finite) = self.enforce_tank();
+        let clamped = clamped + self.enforce_rigid_bodies();
         self.record_statistics(cfl_dt, &density, &divergence, (clamped, non_finite));
     }
 
@@ -723,31 +778,142 @@ impl Simulation {
             // moves the container as one. A static wall that the tank's own wall swept past
             // would trap and crush the water between them (seen in `dfsph2d stress`).
             let v = Vec2::new(vx, 0.0);
-            for body in &mut self.bodies {
+            for body in self.bodies.iter_mut().filter(|b| b.rigid.is_none()) {
                 body.velocity = v;
             }
+            let bodies = &self.bodies;
             self.boundary
                 .velocity
                 .par_iter_mut()
+                .zip(self.boundary.body.par_iter())
                 .with_min_len(LIGHT_PASS_MIN_ITEMS)
-                .for_each(|u| *u = v);
+                .for_each(|(u, &b)| {
+                    if bodies[b as usize].rigid.is_none() {
+                        *u = v
+                    }
+                });
         }
     }
 
     fn move_bodies(&mut self, dt: f32) {
-        if self.bodies.iter().all(|b| b.velocity == Vec2::ZERO) {
+        if self
+            .bodies
+            .iter()
+            .all(|b| b.velocity == Vec2::ZERO || b.rigid.is_some())
+        {
             return;
         }
-        for b in &mut self.bodies {
+        for b in self.bodies.iter_mut().filter(|b| b.rigid.is_none()) {
             b.offset += dt * b.velocity;
         }
         self.boundary_grid_for = None;
+        let bodies = &self.bodies;
         self.boundary
             .position
             .par_iter_mut()
             .zip(self.boundary.velocity.par_iter())
+            .zip(self.boundary.body.par_iter())
             .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .for_each(|(x, &v)| *x += dt * v);
+            .for_each(|((x, &v), &b)| {
+                if bodies[b as usize].rigid.is_none() {
+                    *x += dt * v
+                }
+            });
+    }
+
+    /// The impulse the fluid gave each rigid body in the step of `dt` just solved, with its
+    /// moment about the body's centre of mass ([`coupling`]).
+    fn rigid_body_impulses(&self, dt: f32) -> Vec<coupling::BodyImpulse> {
+        let Some(rigid) = &self.rigid else {
+            return Vec::new();
+        };
+        let rigid_of: Vec<Option<u16>> = self.bodies.iter().map(|b| b.rigid).collect();
+        let centres: Vec<Vec2> = (0..rigid.len()).map(|k| rigid.centre_of_mass(k)).collect();
+        let ghost_slope = self
+            .pressure
+            .walls()
+            .hydrostatic_ghost_gradient(self.gravity)
+            .map(|g| g / self.gradient_consistency);
+        let dfsph = self.scene.solver.method == Method::Dfsph;
+        let terms = WallTerms {
+            divergence_stiffness: (dfsph && self.settings.divergence_solve)
+                .then_some(&self.fluid.divergence_stiffness[..]),
+            pressure_to_kappa: dt * self.pressure.pressure_force_scale(),
+            weight: self.pressure.walls().gradient_weight(),
+            ghost_slope,
+        };
+        let step = StepContext {
+            kernel: &self.kernel,
+            volume: self.volume,
+            spacing: self.spacing,
+            dt,
+            gravity: self.gravity,
+            flow_speed: self.stats.max_speed as f32,
+            settings: &self.settings,
+            nb: Neighborhood::new(&self.fluid_lists, &self.boundary_lists, &self.pair_cache),
+            boundary: &self.boundary,
+        };
+        coupling::body_impulses(
+            &step,
+            &self.fluid,
+            &terms,
+            self.particle_mass(),
+            &rigid_of,
+            &centres,
+        )
+    }
+
+    /// Advance the rigid bodies by `dt` under gravity and the fluid's `impulses`, and put
+    /// their boundary particles where the bodies went, with the bodies' velocities there.
+    fn move_rigid_bodies(&mut self, dt: f32, impulses: &[coupling::BodyImpulse]) {
+        let Some(rigid) = &mut self.rigid else {
+            return;
+        };
+        rigid.step(dt, self.gravity, impulses, self.bodies[0].offset);
+        self.place_rigid_particles();
+    }
+
+    /// Put every rigid body's boundary particles where its body stands, with its velocity.
+    pub(crate) fn place_rigid_particles(&mut self) {
+        let Some(rigid) = &self.rigid else {
+            return;
+        };
+        let bodies = &self.bodies;
+        self.boundary
+            .position
+            .par_iter_mut()
+            .zip(self.boundary.velocity.par_iter_mut())
+            .zip(
+                self.boundary
+                    .body
+                    .par_iter()
+                    .zip(self.boundary.local.par_iter()),
+            )
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
+            .for_each(|((x, v), (&b, &q))| {
+                if let Some(k) = bodies[b as usize].rigid {
+                    (*x, *v) = rigid.point_motion(k as usize, q);
+                }
+            });
+        self.boundary_grid_for = None;
+    }
+
+    /// Last-resort containment for the rigid bodies, like [`Self::enforce_tank`]'s: a fluid
+    /// particle past the centre line of a body's first boundary layer (half a spacing inside
+    /// its outline) has gone through it; it is put back on the outline, its velocity into
+    /// the body removed, and counted.
+    fn enforce_rigid_bodies(&mut self) -> u32 {
+        let Some(rigid) = &self.rigid else {
+            return 0;
+        };
+        let margin = 0.5 * self.spacing;
+        self.fluid
+            .position
+            .par_iter_mut()
+            .zip(self.fluid.velocity.par_iter_mut())
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
+            .map(|(x, v)| rigid.push_out(x, v, margin) as u32)
+            .sum()
     }
 
     /// The interior of the tank as it stands now (it moves when shaken), m.
@@ -813,6 +979,33 @@ impl Simulation {
     }
 
     // ---- Read access: the library API used by the viewer, the CLI and embedders. ----
+
+    /// The rigid bodies as they stand, in order (scene's first, then those added).
+    pub fn rigid_bodies(&self) -> Vec<RigidBodyState> {
+        self.rigid.as_ref().map_or_else(Vec::new, |r| r.states())
+    }
+
+    /// Number of rigid bodies.
+    pub fn rigid_body_count(&self) -> usize {
+        self.rigid.as_ref().map_or(0, |r| r.len())
+    }
+
+    /// The rigid body whose outline contains `at` (m), if any.
+    pub fn rigid_body_at(&self, at: Vec2) -> Option<usize> {
+        self.rigid.as_ref().and_then(|r| r.body_at(at))
+    }
+
+    /// The rigid body the pointer holds and where it pulls it, m.
+    pub fn dragged_body(&self) -> Option<(usize, Vec2)> {
+        self.rigid.as_ref().and_then(|r| r.dragged())
+    }
+
+    /// Total linear momentum of the fluid and the rigid bodies, kg·m/s per metre of depth.
+    pub fn momentum(&self) -> Vec2 {
+        let fluid: glam::DVec2 = self.fluid.velocity.iter().map(|v| v.as_dvec2()).sum();
+        let bodies = self.rigid.as_ref().map_or(Vec2::ZERO, |r| r.momentum());
+        (fluid * self.particle_mass() as f64).as_vec2() + bodies
+    }
 
     /// The scene this simulation runs, with any parameter changes applied since.
     pub fn scene(&self) -> &Scene {

@@ -427,6 +427,7 @@ mod tests {
                 .push(Vec2::new(0.7, 0.2 + 0.1 * jitter(o)));
             boundary.volume.push(0.6 * volume);
             boundary.body.push(0);
+            boundary.local.push(Vec2::ZERO);
         }
         let mut fluid_lists = NeighborLists::default();
         let mut boundary_lists = NeighborLists::default();

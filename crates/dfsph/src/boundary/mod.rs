@@ -62,6 +62,9 @@ pub struct Body {
     pub velocity: Vec2,
     /// Displacement of the body since it was created, metres.
     pub offset: Vec2,
+    /// The rigid body ([`crate::rigid`]) this is, by index: its particles move with it rather
+    /// than with the tank.
+    pub rigid: Option<u16>,
 }
 
 /// Sampled boundary particles before volumes are known.

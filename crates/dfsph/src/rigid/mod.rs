@@ -1,0 +1,490 @@
+//! Rigid bodies two-way coupled with the fluid (Akinci et al. 2012, "Versatile rigid-fluid
+//! coupling for incompressible SPH"). Each body is sampled with boundary particles that move
+//! with it ([`sampling`]); the fluid sees them as walls with the body's velocity (in the
+//! divergence and density solves, through the wall flux `Σ_b Ψ_b v_b·∇W_ib`), and the body
+//! receives the opposite of every impulse those walls gave the fluid in the step
+//! ([`coupling`]), as a force and a torque. Rapier (`rapier2d`) integrates the bodies and
+//! resolves their contacts with each other and with the tank, and their joints.
+//!
+//! Light bodies. The coupling is explicit: the fluid's answer to a body's acceleration (its
+//! added mass) reaches the body one step late, which diverges when the added mass exceeds the
+//! body's own (a 100 kg/m³ box in water). The body's acceleration is therefore integrated
+//! with an added-mass estimate `m_a` on both sides (`(m + m_a)·Δv = J + m·g·Δt + m_a·Δv_prev`,
+//! see [`RigidBodies::step`]): at rest or at constant acceleration nothing changes, while the
+//! one-step-late feedback is damped. Over a run the extra terms telescope to `m_a` times the
+//! difference of the first and the last step's velocity change, so momentum is kept.
+
+pub(crate) mod coupling;
+use coupling::BodyImpulse;
+mod sampling;
+pub mod spec;
+
+use glam::Vec2;
+use rapier2d::prelude as rp;
+
+use crate::kernel::CubicSpline;
+pub use spec::{BodyJoint, BodyShape, BodySpec, MAX_BODIES};
+
+/// What a user or an output sees of one body.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RigidBodyState {
+    /// The body's position (the centre it was placed by), m.
+    pub position: Vec2,
+    /// Rotation, radians, counter-clockwise.
+    pub angle: f32,
+    /// Velocity of the position, m/s.
+    pub velocity: Vec2,
+    /// Spin, rad/s.
+    pub angular_velocity: f32,
+    /// Mass per metre of depth, kg/m.
+    pub mass: f32,
+    /// The body as specified, with its current position, angle and velocities.
+    pub spec: BodySpec,
+    /// The outline in the tank's frame, counter-clockwise (a circle as a 48-gon), m.
+    pub outline: Vec<Vec2>,
+}
+
+/// How hard a grabbed body is pulled to the pointer: a critically damped spring of this
+/// frequency, Hz, with the pull's acceleration capped at [`MAX_DRAG_ACCELERATION`].
+const DRAG_FREQUENCY: f32 = 4.0;
+/// The largest acceleration a drag gives a body, m/s² (about 10 g).
+pub const MAX_DRAG_ACCELERATION: f32 = 100.0;
+
+/// Share of the displaced fluid's mass taken as a body's added mass ([`RigidBodies::step`]).
+const ADDED_MASS_SHARE: f32 = 1.0;
+
+/// The bodies of a simulation and the rapier world they live in.
+pub(crate) struct RigidBodies {
+    world: rp::PhysicsWorld,
+    /// The tank: a kinematic body whose four walls the bodies collide with; it follows the
+    /// shaken tank.
+    tank: rp::RigidBodyHandle,
+    pub(crate) bodies: Vec<Rigid>,
+    drag: Option<Drag>,
+}
+
+/// One body: its specification, its rapier handle and the boundary particles' body id.
+pub(crate) struct Rigid {
+    pub spec: BodySpec,
+    handle: rp::RigidBodyHandle,
+    /// The added-mass estimate of the body in water, kg/m, and its moment, kg·m.
+    added_mass: f32,
+    added_inertia: f32,
+
+    /// The body's velocity change from the fluid and gravity in the previous step, m/s, and
+    /// its change of spin, rad/s.
+    previous_dv: Vec2,
+    previous_dw: f32,
+}
+
+/// A body held by the pointer: the grabbed point, in the body's frame, is pulled to `target`.
+#[derive(Clone, Copy, Debug)]
+struct Drag {
+    body: usize,
+    anchor: Vec2,
+    target: Vec2,
+}
+
+fn rv(v: Vec2) -> rp::Vector {
+    rp::Vector::new(v.x, v.y)
+}
+
+fn gv(v: rp::Vector) -> Vec2 {
+    Vec2::new(v.x, v.y)
+}
+
+impl RigidBodies {
+    /// An empty world for the tank interior `[lo, hi]` (m) under `gravity`.
+    pub fn new(lo: Vec2, hi: Vec2, gravity: Vec2) -> Self {
+        let mut world = rp::PhysicsWorld {
+            gravity: rv(gravity),
+            ..Default::default()
+        };
+        let (tank, _) = world.insert(
+            rp::RigidBodyBuilder::kinematic_position_based(),
+            rp::ColliderBuilder::cuboid(0.01, 0.01).sensor(true),
+        );
+        // Four thick walls around the interior.
+        let size = hi - lo;
+        let t = size.max_element();
+        let centre = 0.5 * (lo + hi);
+        for (c, half) in [
+            (
+                Vec2::new(lo.x - t, centre.y),
+                Vec2::new(t, 0.5 * size.y + 2.0 * t),
+            ),
+            (
+                Vec2::new(hi.x + t, centre.y),
+                Vec2::new(t, 0.5 * size.y + 2.0 * t),
+            ),
+            (
+                Vec2::new(centre.x, lo.y - t),
+                Vec2::new(0.5 * size.x + 2.0 * t, t),
+            ),
+            (
+                Vec2::new(centre.x, hi.y + t),
+                Vec2::new(0.5 * size.x + 2.0 * t, t),
+            ),
+        ] {
+            let wall = rp::ColliderBuilder::cuboid(half.x, half.y)
+                .translation(rv(c))
+                .friction(0.5);
+            world
+                .colliders
+                .insert_with_parent(wall, tank, &mut world.bodies);
+        }
+        Self {
+            world,
+            tank,
+            bodies: Vec::new(),
+            drag: None,
+        }
+    }
+
+    /// Number of bodies.
+    pub fn len(&self) -> usize {
+        self.bodies.len()
+    }
+
+    /// Add a body (validated); `tank_offset` is how far the tank has moved (the body's position is in the tank's frame at rest). Returns
+    /// the body's index, its particles in its own frame and their volumes.
+    pub fn add(
+        &mut self,
+        spec: &BodySpec,
+        tank_offset: Vec2,
+        d: f32,
+        kernel: &CubicSpline,
+        rest_density: f32,
+    ) -> (usize, Vec<Vec2>, Vec<f32>) {
+        let position = Vec2::new(spec.position[0] as f32, spec.position[1] as f32) + tank_offset;
+        let builder = rp::RigidBodyBuilder::dynamic()
+            .translation(rv(position))
+            .rotation(spec.angle as f32)
+            .linvel(rp::Vector::new(
+                spec.velocity[0] as f32,
+                spec.velocity[1] as f32,
+            ))
+            .angvel(spec.angular_velocity as f32)
+            .can_sleep(false);
+        let collider = match spec.polygon() {
+            Some(points) => {
+                let pts: Vec<rp::Vector> = points
+                    .iter()
+                    .map(|p| rp::Vector::new(p[0] as f32, p[1] as f32))
+                    .collect();
+                rp::ColliderBuilder::convex_hull(&pts).expect("a validated convex polygon")
+            }
+            None => rp::ColliderBuilder::ball(spec.radius.unwrap_or(0.0) as f32),
+        };
+        let area = spec.area() as f32;
+        let collider = collider
+            .density(spec.mass_per_depth() as f32 / area)
+            .friction(spec.friction as f32)
+            .restitution(0.0);
+        let (handle, _) = self.world.insert(builder, collider);
+        match &spec.joint {
+            None => {}
+            Some(BodyJoint::Fixed) => {
+                let frame = rp::Pose::new(
+                    rv(position - tank_offset_of(&self.world, self.tank)),
+                    spec.angle as f32,
+                );
+                let joint = rp::FixedJointBuilder::new().local_frame1(frame);
+                self.world
+                    .impulse_joints
+                    .insert(self.tank, handle, joint, true);
+            }
+            Some(BodyJoint::Hinge { anchor }) => {
+                let anchor = Vec2::new(anchor[0] as f32, anchor[1] as f32);
+                let (s, c) = (spec.angle as f32).sin_cos();
+                let rel = anchor + tank_offset - position;
+                let local = Vec2::new(c * rel.x + s * rel.y, -s * rel.x + c * rel.y);
+                let joint = rp::RevoluteJointBuilder::new()
+                    .local_anchor1(rv(
+                        anchor + tank_offset - tank_offset_of(&self.world, self.tank)
+                    ))
+                    .local_anchor2(rv(local));
+                self.world
+                    .impulse_joints
+                    .insert(self.tank, handle, joint, true);
+            }
+        }
+        let (local, volume) = sampling::sample(spec, d, kernel);
+        // The fluid a body moves along with it: about its own area of water (a plate moving
+        // across its face carries π/4·w² of it, a disc its own area).
+        let added_mass = ADDED_MASS_SHARE * rest_density * area;
+        let inertia = self.world.bodies[handle]
+            .mass_properties()
+            .effective_angular_inertia();
+        let mass = self.world.bodies[handle].mass();
+        let added_inertia = inertia * added_mass / mass.max(f32::MIN_POSITIVE);
+        self.bodies.push(Rigid {
+            spec: spec.clone(),
+            handle,
+            added_mass,
+            added_inertia,
+            previous_dv: Vec2::ZERO,
+            previous_dw: 0.0,
+        });
+        (self.bodies.len() - 1, local, volume)
+    }
+
+    /// Body `k`'s position, angle, velocity and spin.
+    fn pose(&self, k: usize) -> (Vec2, f32, Vec2, f32) {
+        let rb = &self.world.bodies[self.bodies[k].handle];
+        (
+            gv(rb.translation()),
+            rb.rotation().angle(),
+            gv(rb.linvel()),
+            rb.angvel(),
+        )
+    }
+
+    /// The world position and velocity of the point at `local` (body frame) of body `k`.
+    pub fn point_motion(&self, k: usize, local: Vec2) -> (Vec2, Vec2) {
+        let rb = &self.world.bodies[self.bodies[k].handle];
+        let x = gv(rb.position().transform_point(rv(local)));
+        (x, gv(rb.velocity_at_point(rv(x))))
+    }
+
+    /// Body `k`'s centre of mass, m.
+    pub fn centre_of_mass(&self, k: usize) -> Vec2 {
+        gv(self.world.bodies[self.bodies[k].handle].center_of_mass())
+    }
+
+    /// Advance the bodies by `dt` under gravity, the fluid's impulses over the step
+    /// (`impulses[k]`: N·s/m and N·s about the centre of mass) and the drag, with the tank at
+    /// `tank_offset` (m) moving at `tank_velocity`.
+    pub fn step(&mut self, dt: f32, gravity: Vec2, impulses: &[BodyImpulse], tank_offset: Vec2) {
+        self.world.gravity = rv(gravity);
+        self.world.integration_parameters.dt = dt;
+        self.world.bodies[self.tank].set_next_kinematic_translation(rv(tank_offset));
+        for (k, body) in self.bodies.iter_mut().enumerate() {
+            let rb = &mut self.world.bodies[body.handle];
+            let mass = rb.mass();
+            let inertia = rb.mass_properties().effective_angular_inertia();
+            let fluid = impulses.get(k).copied().unwrap_or_default();
+            let (impulse, angular) = (fluid.linear, fluid.angular);
+            // (m + m_a)·Δv = J + m·g·Δt + m_a·Δv_prev: the fluid's and gravity's velocity
+            // change, with the added mass on both sides (module doc). Written with velocity
+            // changes rather than accelerations, the extra terms telescope whatever Δt does.
+            let ma = body.added_mass;
+            let dv = (impulse + mass * dt * gravity + ma * body.previous_dv) / (mass + ma);
+            let ia = body.added_inertia;
+            let dw = (angular + ia * body.previous_dw) / (inertia + ia).max(f32::MIN_POSITIVE);
+            body.previous_dv = dv;
+            body.previous_dw = dw;
+            let (accel, alpha) = (dv / dt, dw / dt);
+            rb.reset_forces(false);
+            rb.reset_torques(false);
+            // Rapier adds gravity itself.
+            rb.add_force(rv(mass * (accel - gravity)), true);
+            rb.add_torque(inertia * alpha, true);
+        }
+        if let Some(drag) = self.drag {
+            if let Some(body) = self.bodies.get(drag.body) {
+                let rb = &mut self.world.bodies[body.handle];
+                let at = gv(rb.position().transform_point(rv(drag.anchor)));
+                let v = gv(rb.velocity_at_point(rv(at)));
+                let omega = std::f32::consts::TAU * DRAG_FREQUENCY;
+                let pull = (omega * omega * (drag.target - at) - 2.0 * omega * v)
+                    .clamp_length_max(MAX_DRAG_ACCELERATION);
+                let mass = rb.mass();
+                rb.add_force_at_point(rv(mass * pull), rv(at), true);
+            }
+        }
+        self.world.step();
+    }
+
+    /// Grab the body under `at` (m), if any: from now on [`Self::drag_to`] pulls the grabbed
+    /// point. Returns the body's index.
+    pub fn grab(&mut self, at: Vec2) -> Option<usize> {
+        let k = self.body_at(at)?;
+        let rb = &self.world.bodies[self.bodies[k].handle];
+        let anchor = gv(rb.position().inverse_transform_point(rv(at)));
+        self.drag = Some(Drag {
+            body: k,
+            anchor,
+            target: at,
+        });
+        Some(k)
+    }
+
+    /// Move the pull's target (m).
+    pub fn drag_to(&mut self, target: Vec2) -> bool {
+        match &mut self.drag {
+            Some(drag) => {
+                drag.target = target;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Let go of the grabbed body.
+    pub fn release(&mut self) {
+        self.drag = None;
+    }
+
+    /// The grabbed body and the pull's target, if any.
+    pub fn dragged(&self) -> Option<(usize, Vec2)> {
+        self.drag.map(|d| (d.body, d.target))
+    }
+
+    /// The body whose outline contains `at`, if any (the last added first).
+    pub fn body_at(&self, at: Vec2) -> Option<usize> {
+        (0..self.bodies.len())
+            .rev()
+            .find(|&k| self.signed_distance(k, at) <= 0.0)
+    }
+
+    /// Whether a fluid particle at `p` would sit inside a body or closer than half the
+    /// spacing `d` to its outline, where the body's boundary particles would crush it.
+    pub fn covers(&self, p: Vec2, d: f32) -> bool {
+        let margin = 0.5 * d * (1.0 - 1.0e-3);
+        (0..self.bodies.len()).any(|k| self.signed_distance(k, p) < margin)
+    }
+
+    /// Distance from `p` to body `k`'s outline, m: negative inside.
+    pub fn signed_distance(&self, k: usize, p: Vec2) -> f32 {
+        let rb = &self.world.bodies[self.bodies[k].handle];
+        let q = gv(rb.position().inverse_transform_point(rv(p)));
+        signed_distance_local(&self.bodies[k].spec, q)
+    }
+
+    /// Push `p` (with velocity `v`) out of every body it has entered beyond `margin` (m)
+    /// inside the outline: onto the outline, its velocity into the body taken away. Returns
+    /// whether it had to be moved.
+    pub fn push_out(&self, p: &mut Vec2, v: &mut Vec2, margin: f32) -> bool {
+        let mut moved = false;
+        for (k, body) in self.bodies.iter().enumerate() {
+            let rb = &self.world.bodies[body.handle];
+            let c = gv(rb.translation());
+            if (*p - c).length() > bounding_radius(&body.spec) {
+                continue;
+            }
+            let q = gv(rb.position().inverse_transform_point(rv(*p)));
+            let dist = signed_distance_local(&body.spec, q);
+            if dist >= -margin {
+                continue;
+            }
+            let n_local = outward_normal_local(&body.spec, q);
+            let n = gv(rb.position().transform_vector(rv(n_local)));
+            *p += (-dist) * n;
+            let vb = gv(rb.velocity_at_point(rv(*p)));
+            let into = (*v - vb).dot(n);
+            if into < 0.0 {
+                *v -= into * n;
+            }
+            let _ = k;
+            moved = true;
+        }
+        moved
+    }
+
+    /// Every body's state, in order.
+    pub fn states(&self) -> Vec<RigidBodyState> {
+        (0..self.bodies.len())
+            .map(|k| {
+                let (position, angle, velocity, angular_velocity) = self.pose(k);
+                let rb = &self.world.bodies[self.bodies[k].handle];
+                let mut spec = self.bodies[k].spec.clone();
+                spec.angle = angle as f64;
+                spec.velocity = [velocity.x as f64, velocity.y as f64];
+                spec.angular_velocity = angular_velocity as f64;
+                let outline = outline_local(&spec)
+                    .into_iter()
+                    .map(|q| gv(rb.position().transform_point(rv(q))))
+                    .collect();
+                RigidBodyState {
+                    position,
+                    angle,
+                    velocity,
+                    angular_velocity,
+                    mass: rb.mass(),
+                    spec,
+                    outline,
+                }
+            })
+            .collect()
+    }
+
+    /// Total linear momentum of the bodies, kg·m/s per metre of depth.
+    pub fn momentum(&self) -> Vec2 {
+        self.bodies
+            .iter()
+            .map(|b| {
+                let rb = &self.world.bodies[b.handle];
+                rb.mass() * gv(rb.linvel())
+            })
+            .sum()
+    }
+}
+
+/// Where the tank's kinematic body stands.
+fn tank_offset_of(world: &rp::PhysicsWorld, tank: rp::RigidBodyHandle) -> Vec2 {
+    gv(world.bodies[tank].translation())
+}
+
+/// The largest distance from a body's position to its outline, m.
+fn bounding_radius(spec: &BodySpec) -> f32 {
+    match spec.polygon() {
+        Some(p) => p
+            .iter()
+            .map(|v| v[0].hypot(v[1]) as f32)
+            .fold(0.0, f32::max),
+        None => spec.radius.unwrap_or(0.0) as f32,
+    }
+}
+
+/// Distance from `q` (body frame) to the outline, negative inside; for a polygon, the largest
+/// distance beyond its edges' lines (exact inside, a lower bound outside near a corner).
+fn signed_distance_local(spec: &BodySpec, q: Vec2) -> f32 {
+    match spec.polygon() {
+        Some(p) => polygon_edges(&p)
+            .map(|(a, n)| (q - a).dot(n))
+            .fold(f32::NEG_INFINITY, f32::max),
+        None => q.length() - spec.radius.unwrap_or(0.0) as f32,
+    }
+}
+
+/// The outward normal of the nearest side to `q` (body frame).
+fn outward_normal_local(spec: &BodySpec, q: Vec2) -> Vec2 {
+    match spec.polygon() {
+        Some(p) => polygon_edges(&p)
+            .max_by(|x, y| (q - x.0).dot(x.1).total_cmp(&(q - y.0).dot(y.1)))
+            .map(|(_, n)| n)
+            .unwrap_or(Vec2::Y),
+        None => q.try_normalize().unwrap_or(Vec2::Y),
+    }
+}
+
+/// Each edge's start and outward unit normal, for a counter-clockwise polygon.
+fn polygon_edges(p: &[[f64; 2]]) -> impl Iterator<Item = (Vec2, Vec2)> + '_ {
+    let n = p.len();
+    (0..n).map(move |k| {
+        let a = Vec2::new(p[k][0] as f32, p[k][1] as f32);
+        let b = Vec2::new(p[(k + 1) % n][0] as f32, p[(k + 1) % n][1] as f32);
+        let e = (b - a).normalize_or_zero();
+        (a, Vec2::new(e.y, -e.x))
+    })
+}
+
+/// The outline in the body's frame (a circle as a 48-gon).
+fn outline_local(spec: &BodySpec) -> Vec<Vec2> {
+    match spec.polygon() {
+        Some(p) => p
+            .iter()
+            .map(|v| Vec2::new(v[0] as f32, v[1] as f32))
+            .collect(),
+        None => {
+            let r = spec.radius.unwrap_or(0.0) as f32;
+            (0..48)
+                .map(|k| {
+                    let a = std::f32::consts::TAU * k as f32 / 48.0;
+                    r * Vec2::new(a.cos(), a.sin())
+                })
+                .collect()
+        }
+    }
+}
