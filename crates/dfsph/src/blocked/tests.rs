@@ -456,6 +456,8 @@ fn window_codes_name_each_neighbour() {
     // Particle 485 (block 30, rows 11–13 of the lattice) also reaches the last point.
     let (lists, grads) = lattice_lists(n, 40, Some(485));
     let mut blocks = BlockedPairs::default();
+    // The AVX-512 path even where another one is in use (`DFSPH2D_SIMD=fma|portable`).
+    blocks.set_simd_path(SimdPath::Avx512);
     blocks.set_gather(Gather::Windows);
     blocks.build(&lists, &grads);
     assert!(blocks.windows(30).is_none());
