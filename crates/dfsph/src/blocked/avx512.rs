@@ -132,10 +132,13 @@ pub unsafe fn fill_fluid_block<I: SlotIndex>(
         // ∇W = r·(dW/dq·(1/h)/|r|) where 1e-9 < |r| and q < 1, else 0.
         let has_grad = inside & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(rl, c(1.0e-9)) & pair;
         let scale = _mm512_maskz_div_ps(has_grad, _mm512_mul_ps(d, c(inv_h)), rl);
-        // Padding stores +0 (its r, taken from another particle, could carry a sign).
+        // Every lane without a gradient stores +0, as `CubicSpline::w_and_grad`'s
+        // `Vec2::ZERO` and the lane kernels do: padding (its r, taken from another
+        // particle, could carry a sign) and real pairs at q ≥ 1 or |r| ≤ 1e-9, where
+        // r·0 would be −0 for a negative component.
         let (gxv, gyv) = (
-            _mm512_maskz_mul_ps(pair, rx, scale),
-            _mm512_maskz_mul_ps(pair, ry, scale),
+            _mm512_maskz_mul_ps(has_grad, rx, scale),
+            _mm512_maskz_mul_ps(has_grad, ry, scale),
         );
         _mm512_storeu_ps(gx.as_mut_ptr().add(kk), gxv);
         _mm512_storeu_ps(gy.as_mut_ptr().add(kk), gyv);

@@ -456,6 +456,8 @@ fn window_codes_name_each_neighbour() {
     // Particle 485 (block 30, rows 11–13 of the lattice) also reaches the last point.
     let (lists, grads) = lattice_lists(n, 40, Some(485));
     let mut blocks = BlockedPairs::default();
+    // The AVX-512 path even where another one is in use (`DFSPH2D_SIMD=fma|portable`).
+    blocks.set_simd_path(SimdPath::Avx512);
     blocks.set_gather(Gather::Windows);
     blocks.build(&lists, &grads);
     assert!(blocks.windows(30).is_none());
@@ -660,5 +662,56 @@ fn the_fma_path_fuses_the_pressure_sums() {
     assert!(differ > 0, "no sum rounds differently");
     for (a, b) in fused.iter().zip(&apart) {
         assert!((a - b).abs() <= 1e-5 * a.abs().max(1.0), "{a} against {b}");
+    }
+}
+
+/// The density pass stores, for every pair on every path, the bits of
+/// [`CubicSpline::w_and_grad`]'s `∇W`: `+0` (its `Vec2::ZERO`) beyond the support, where
+/// `r·0` would carry `r`'s sign, and `+0` in the padding. (The AVX-512 kernel once wrote
+/// `−0` there, which no sum shows; the gradients are read again by every later pass.)
+#[test]
+fn the_density_pass_stores_the_scalar_gradients() {
+    for (lists, _) in [random_lists(333), lattice_lists(1000, 40, None)] {
+        let n = lists.len();
+        let pos: Vec<Vec2> = (0..n)
+            .map(|k| Vec2::new(unit(k as u64 * 5 + 2), unit(k as u64 * 5 + 3)) - 0.4)
+            .map(|p| p * 0.05)
+            .collect();
+        let kernel = CubicSpline::new(0.04);
+        for path in SimdPath::available_paths() {
+            let mut blocks = BlockedPairs::default();
+            blocks.set_simd_path(path);
+            blocks.prepare(&lists);
+            for (b, mut w) in blocks.writers(1).into_iter().enumerate() {
+                w.fill_block(b, &lists, &pos, &kernel, 0.5, 0.1);
+            }
+            let (mut beyond, mut negative) = (0, 0);
+            for b in 0..blocks.blocks() {
+                let e = blocks.slots_before(b) * LANES..blocks.slots_before(b + 1) * LANES;
+                for (s, k) in e.step_by(LANES).enumerate() {
+                    for l in 0..LANES {
+                        let i = b * LANES + l;
+                        let list = if i < n { lists.of(i) } else { &[] };
+                        let want = list.get(s).map_or(Vec2::ZERO, |&j| {
+                            let r = pos[i] - pos[j as usize];
+                            let g = kernel.w_and_grad(r).1;
+                            beyond += usize::from(g == Vec2::ZERO);
+                            negative += usize::from(g == Vec2::ZERO && r.x < 0.0);
+                            g
+                        });
+                        let got = (blocks.grad_x[k + l], blocks.grad_y[k + l]);
+                        assert_eq!(
+                            (got.0.to_bits(), got.1.to_bits()),
+                            (want.x.to_bits(), want.y.to_bits()),
+                            "path {path}, particle {i}, slot {s}"
+                        );
+                    }
+                }
+            }
+            assert!(
+                negative > 0 && beyond > negative,
+                "path {path}: a real test"
+            );
+        }
     }
 }
