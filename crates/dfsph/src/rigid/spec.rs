@@ -422,11 +422,11 @@ impl BodySpec {
         }
         if let Some(BodyJoint::Hinge { anchor }) = &self.joint {
             point(&format!("{key}.joint.anchor"), *anchor)?;
-            for axis in 0..2 {
-                if anchor[axis] < tank.min[axis] - eps || anchor[axis] > tank.max[axis] + eps {
+            for (axis, &a) in anchor.iter().enumerate() {
+                if a < tank.min[axis] - eps || a > tank.max[axis] + eps {
                     return Err(invalid(
                         format!("{key}.joint.anchor[{axis}]"),
-                        format!("{} lies outside the tank", anchor[axis]),
+                        format!("{a} lies outside the tank"),
                     ));
                 }
             }
@@ -480,4 +480,148 @@ fn first_non_convex_vertex(p: &[Point]) -> Option<usize> {
         return Some(0);
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::scene::Scene;
+
+    /// The error for a dam break whose `bodies` is `bodies` (JSON).
+    fn error(bodies: &str) -> String {
+        Scene::from_json(&format!(
+            r#"{{"particle_radius": 0.02, "bodies": {bodies}}}"#
+        ))
+        .expect_err(bodies)
+        .to_string()
+    }
+
+    #[test]
+    fn the_issues_example_is_accepted() {
+        let s = Scene::from_json(
+            r#"{"bodies": [{"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [1.0, 0.8]},
+                {"shape": "circle", "radius": 0.1, "density": 250, "position": [0.5, 0.8]}]}"#,
+        )
+        .unwrap();
+        assert_eq!(s.bodies.len(), 2);
+        assert!((s.bodies[0].mass_per_depth() - 40.0).abs() < 1e-9);
+        // Written back, a scene reads the same.
+        assert_eq!(Scene::from_json(&s.to_json()).unwrap(), s);
+    }
+
+    #[test]
+    fn bad_bodies_are_refused_naming_the_key() {
+        for (bodies, key) in [
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [3.9, 0.8]}]"#,
+                "`bodies[0].position[0]`",
+            ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [1, -0.05]}]"#,
+                "`bodies[0].position[1]`",
+            ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0], "density": 500, "position": [1, 1]}]"#,
+                "`bodies[0].size[1]`",
+            ),
+            (
+                r#"[{"shape": "box", "size": [-0.4, 0.2], "density": 500, "position": [1, 1]}]"#,
+                "`bodies[0].size[0]`",
+            ),
+            (
+                r#"[{"shape": "circle", "radius": 0, "density": 500, "position": [1, 1]}]"#,
+                "`bodies[0].radius`",
+            ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "density": 0, "position": [1, 1]}]"#,
+                "`bodies[0].density`",
+            ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "density": -5, "position": [1, 1]}]"#,
+                "`bodies[0].density`",
+            ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "mass": 0, "position": [1, 1]}]"#,
+                "`bodies[0].mass`",
+            ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "position": [1, 1]}]"#,
+                "`bodies[0].density`",
+            ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "density": 5, "position": [1, 1]}]"#,
+                "`bodies[0].density`",
+            ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "density": 500, "mass": 3, "position": [1, 1]}]"#,
+                "`bodies[0].mass`",
+            ),
+            (
+                r#"[{"shape": "box", "radius": 0.2, "density": 500, "position": [1, 1]}]"#,
+                "`bodies[0].radius`",
+            ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.05], "density": 500, "position": [1, 1]}]"#,
+                "`bodies[0].size`",
+            ),
+            (
+                r#"[{"shape": "polygon", "points": [[0, 0], [0.4, 0], [0.1, 0.1], [0, 0.4]], "density": 500, "position": [1, 1]}]"#,
+                "`bodies[0].points[2]`",
+            ),
+            (
+                r#"[{"shape": "polygon", "points": [[0, 0], [0.4, 0], [0.8, 0]], "density": 500, "position": [1, 1]}]"#,
+                "`bodies[0].points",
+            ),
+            (
+                r#"[{"shape": "polygon", "points": [[0, 0], [0.4, 0]], "density": 500, "position": [1, 1]}]"#,
+                "`bodies[0].points`",
+            ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [1, 1], "velocity": [1000, 0]}]"#,
+                "`bodies[0].velocity`",
+            ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [1, 1], "joint": {"type": "hinge", "anchor": [9, 1]}}]"#,
+                "`bodies[0].joint.anchor[0]`",
+            ),
+            (
+                r#"[{"shape": "cone", "size": [0.4, 0.2], "density": 500, "position": [1, 1]}]"#,
+                "bodies[0].shape",
+            ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [1, 1], "colour": 3}]"#,
+                "bodies[0]",
+            ),
+        ] {
+            let e = error(bodies);
+            assert!(e.contains(key), "{bodies}: {e} does not name {key}");
+        }
+    }
+
+    #[test]
+    fn a_star_that_turns_the_same_way_at_every_vertex_is_not_convex() {
+        // A pentagram: every turn is to the left, but it winds round twice.
+        let star: Vec<String> = (0..5)
+            .map(|k| {
+                let a = std::f64::consts::TAU * (2 * k) as f64 / 5.0;
+                format!("[{:.6}, {:.6}]", 0.3 * a.cos(), 0.3 * a.sin())
+            })
+            .collect();
+        let e = error(&format!(
+            r#"[{{"shape": "polygon", "points": [{}], "density": 500, "position": [2, 1.5]}}]"#,
+            star.join(", ")
+        ));
+        assert!(e.contains("`bodies[0].points"), "{e}");
+        // The same vertices in order round the outline form a convex pentagon.
+        let pentagon: Vec<String> = (0..5)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / 5.0;
+                format!("[{:.6}, {:.6}]", 0.3 * a.cos(), 0.3 * a.sin())
+            })
+            .collect();
+        Scene::from_json(&format!(
+            r#"{{"particle_radius": 0.02, "bodies": [{{"shape": "polygon", "points": [{}], "density": 500, "position": [2, 1.5]}}]}}"#,
+            pentagon.join(", ")
+        ))
+        .unwrap();
+    }
 }
