@@ -334,6 +334,9 @@ impl Simulation {
         if self.rigid_body_count() >= MAX_BODIES || self.bodies.len() >= BodyId::MAX as usize {
             return Err("too many bodies");
         }
+        if self.scene.solver.method != crate::scene::Method::Dfsph {
+            return Err("rigid bodies need the DFSPH method");
+        }
         if spec
             .validate("body", self.scene.spacing(), &self.scene.tank)
             .is_err()

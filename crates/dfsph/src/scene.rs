@@ -873,6 +873,12 @@ impl Scene {
         for (i, b) in self.bodies.iter().enumerate() {
             b.validate(&format!("bodies[{i}]"), d, &self.tank)?;
         }
+        if !self.bodies.is_empty() && self.solver.method == Method::Wcsph {
+            return Err(invalid(
+                "solver.method",
+                "rigid bodies are coupled through the DFSPH solves; the WCSPH baseline has                  none (use \"dfsph\", or leave `bodies` out)",
+            ));
+        }
         for (i, o) in self.obstacles.iter().enumerate() {
             let key = format!("obstacles[{i}]");
             match o {

@@ -834,9 +834,11 @@ impl Simulation {
             .walls()
             .hydrostatic_ghost_gradient(self.gravity)
             .map(|g| g / self.gradient_consistency);
-        let dfsph = self.scene.solver.method == Method::Dfsph;
+        // Scenes with bodies run DFSPH (`Scene::validate`), whose solves apply these terms.
         let terms = WallTerms {
-            divergence_stiffness: (dfsph && self.settings.divergence_solve)
+            divergence_stiffness: self
+                .settings
+                .divergence_solve
                 .then_some(&self.fluid.divergence_stiffness[..]),
             pressure_to_kappa: dt * self.pressure.pressure_force_scale(),
             weight: self.pressure.walls().gradient_weight(),

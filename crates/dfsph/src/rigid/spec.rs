@@ -591,6 +591,10 @@ mod tests {
                 r#"[{"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [1, 1], "colour": 3}]"#,
                 "bodies[0]",
             ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [1, 1]}], "solver": {"method": "wcsph"}"#,
+                "`solver.method`",
+            ),
         ] {
             let e = error(bodies);
             assert!(e.contains(key), "{bodies}: {e} does not name {key}");
