@@ -528,12 +528,12 @@ impl Simulation {
         // Lines 6, 8 and 9, Algorithm 3: non-pressure forces, predicted velocities and the
         // density solve, redone with half the Δt while the step is unsound.
         let density = self.density_solve_until_sound(cfl_dt.min(self.retry_dt_limit));
-        // The rigid bodies take what their walls gave the fluid in both solves.
+        // The rigid bodies take what their walls gave the fluid in both solves, and move.
         let impulses = self.rigid_body_impulses(density.dt);
-        // Line 10: advect (and move the walls and the bodies); put back what left the tank
-        // or entered a body.
-        self.advect(density.dt);
         self.move_rigid_bodies(density.dt, &impulses);
+        // Line 10: advect (and move the walls); put back what left the tank or entered a
+        // body.
+        self.advect(density.dt);
         let (clamped, non_finite) = self.enforce_tank();
         let clamped = clamped + self.enforce_rigid_bodies();
         self.record_statistics(cfl_dt, &density, &divergence, (clamped, non_finite));
