@@ -262,3 +262,61 @@ fn bodies_dropped_by_action_displace_the_water_and_are_saved() {
     }
     assert_eq!(reloaded.fluid_count(), sim.fluid_count());
 }
+
+#[test]
+fn bodies_stack_on_each_other_and_joints_hold() {
+    use dfsph::scene::BodyJoint;
+    // Two heavy boxes dropped one above the other into shallow water; a third held by a
+    // fixed joint in mid-air; a fourth hinged at its left end, free to swing down.
+    let mut scene = Scene::from_json(
+        r#"{"particle_radius": 0.01, "tank": {"min": [0, 0], "max": [2.0, 1.0]},
+            "fluid": [{"min": [0, 0], "max": [2.0, 0.1]}]}"#,
+    )
+    .unwrap();
+    scene
+        .bodies
+        .push(BodySpec::new_box([0.3, 0.1], 3000.0, [0.5, 0.3]));
+    scene
+        .bodies
+        .push(BodySpec::new_box([0.2, 0.1], 3000.0, [0.52, 0.6]));
+    let mut fixed = BodySpec::new_box([0.2, 0.1], 3000.0, [1.2, 0.7]);
+    fixed.joint = Some(BodyJoint::Fixed);
+    scene.bodies.push(fixed);
+    let mut hinged = BodySpec::new_box([0.4, 0.06], 3000.0, [1.6, 0.8]);
+    hinged.joint = Some(BodyJoint::Hinge {
+        anchor: [1.42, 0.8],
+    });
+    scene.bodies.push(hinged);
+    scene.validate().unwrap();
+    let mut sim = Simulation::new(&scene).unwrap();
+    while sim.time() < 2.0 {
+        assert_eq!(sim.step().non_finite, 0);
+    }
+    let b = sim.rigid_bodies();
+    // The upper box rests on the lower one: centres 0.1 m apart, within a few millimetres.
+    let gap = b[1].position.y - b[0].position.y;
+    assert!((gap - 0.1).abs() < 0.005, "stacked {gap} m apart");
+    assert!(
+        b[0].outline.iter().all(|p| p.y > -0.005),
+        "{:?}",
+        b[0].outline
+    );
+    // The fixed box has not moved; the hinged one hangs from its anchor.
+    assert!(
+        (b[2].position - Vec2::new(1.2, 0.7)).length() < 0.005,
+        "{}",
+        b[2].position
+    );
+    let anchor = Vec2::new(1.42, 0.8);
+    assert!(
+        ((b[3].position - anchor).length() - 0.18).abs() < 0.005,
+        "{}",
+        b[3].position
+    );
+    assert!(
+        b[3].position.y < 0.7,
+        "the hinged bar swung down: {}",
+        b[3].position
+    );
+    assert_eq!(sim.total_clamped(), 0);
+}
