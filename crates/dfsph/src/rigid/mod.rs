@@ -16,6 +16,8 @@
 
 pub(crate) mod coupling;
 use coupling::BodyImpulse;
+use outline::Outline;
+mod outline;
 mod sampling;
 pub mod spec;
 
@@ -66,6 +68,7 @@ pub(crate) struct RigidBodies {
 /// One body: its specification, its rapier handle and the boundary particles' body id.
 pub(crate) struct Rigid {
     pub spec: BodySpec,
+    outline: Outline,
     handle: rp::RigidBodyHandle,
     /// The added-mass estimate of the body in water, kg/m, and its moment, kg·m.
     added_mass: f32,
@@ -220,6 +223,7 @@ impl RigidBodies {
         let added_inertia = inertia * added_mass / mass.max(f32::MIN_POSITIVE);
         self.bodies.push(Rigid {
             spec: spec.clone(),
+            outline: Outline::of(spec),
             handle,
             added_mass,
             added_inertia,
@@ -349,7 +353,7 @@ impl RigidBodies {
     pub fn signed_distance(&self, k: usize, p: Vec2) -> f32 {
         let rb = &self.world.bodies[self.bodies[k].handle];
         let q = gv(rb.position().inverse_transform_point(rv(p)));
-        signed_distance_local(&self.bodies[k].spec, q)
+        self.bodies[k].outline.signed_distance(q)
     }
 
     /// Push `p` (with velocity `v`) out of every body it has entered beyond `margin` (m)
@@ -357,18 +361,18 @@ impl RigidBodies {
     /// whether it had to be moved.
     pub fn push_out(&self, p: &mut Vec2, v: &mut Vec2, margin: f32) -> bool {
         let mut moved = false;
-        for (k, body) in self.bodies.iter().enumerate() {
+        for body in &self.bodies {
             let rb = &self.world.bodies[body.handle];
             let c = gv(rb.translation());
-            if (*p - c).length() > bounding_radius(&body.spec) {
+            if (*p - c).length_squared() > body.outline.bound().powi(2) {
                 continue;
             }
             let q = gv(rb.position().inverse_transform_point(rv(*p)));
-            let dist = signed_distance_local(&body.spec, q);
+            let dist = body.outline.signed_distance(q);
             if dist >= -margin {
                 continue;
             }
-            let n_local = outward_normal_local(&body.spec, q);
+            let n_local = body.outline.outward_normal(q);
             let n = gv(rb.position().transform_vector(rv(n_local)));
             *p += (-dist) * n;
             let vb = gv(rb.velocity_at_point(rv(*p)));
@@ -376,7 +380,6 @@ impl RigidBodies {
             if into < 0.0 {
                 *v -= into * n;
             }
-            let _ = k;
             moved = true;
         }
         moved
@@ -392,7 +395,9 @@ impl RigidBodies {
                 spec.angle = angle as f64;
                 spec.velocity = [velocity.x as f64, velocity.y as f64];
                 spec.angular_velocity = angular_velocity as f64;
-                let outline = outline_local(&spec)
+                let outline = self.bodies[k]
+                    .outline
+                    .vertices()
                     .into_iter()
                     .map(|q| gv(rb.position().transform_point(rv(q))))
                     .collect();
@@ -424,67 +429,4 @@ impl RigidBodies {
 /// Where the tank's kinematic body stands.
 fn tank_offset_of(world: &rp::PhysicsWorld, tank: rp::RigidBodyHandle) -> Vec2 {
     gv(world.bodies[tank].translation())
-}
-
-/// The largest distance from a body's position to its outline, m.
-fn bounding_radius(spec: &BodySpec) -> f32 {
-    match spec.polygon() {
-        Some(p) => p
-            .iter()
-            .map(|v| v[0].hypot(v[1]) as f32)
-            .fold(0.0, f32::max),
-        None => spec.radius.unwrap_or(0.0) as f32,
-    }
-}
-
-/// Distance from `q` (body frame) to the outline, negative inside; for a polygon, the largest
-/// distance beyond its edges' lines (exact inside, a lower bound outside near a corner).
-fn signed_distance_local(spec: &BodySpec, q: Vec2) -> f32 {
-    match spec.polygon() {
-        Some(p) => polygon_edges(&p)
-            .map(|(a, n)| (q - a).dot(n))
-            .fold(f32::NEG_INFINITY, f32::max),
-        None => q.length() - spec.radius.unwrap_or(0.0) as f32,
-    }
-}
-
-/// The outward normal of the nearest side to `q` (body frame).
-fn outward_normal_local(spec: &BodySpec, q: Vec2) -> Vec2 {
-    match spec.polygon() {
-        Some(p) => polygon_edges(&p)
-            .max_by(|x, y| (q - x.0).dot(x.1).total_cmp(&(q - y.0).dot(y.1)))
-            .map(|(_, n)| n)
-            .unwrap_or(Vec2::Y),
-        None => q.try_normalize().unwrap_or(Vec2::Y),
-    }
-}
-
-/// Each edge's start and outward unit normal, for a counter-clockwise polygon.
-fn polygon_edges(p: &[[f64; 2]]) -> impl Iterator<Item = (Vec2, Vec2)> + '_ {
-    let n = p.len();
-    (0..n).map(move |k| {
-        let a = Vec2::new(p[k][0] as f32, p[k][1] as f32);
-        let b = Vec2::new(p[(k + 1) % n][0] as f32, p[(k + 1) % n][1] as f32);
-        let e = (b - a).normalize_or_zero();
-        (a, Vec2::new(e.y, -e.x))
-    })
-}
-
-/// The outline in the body's frame (a circle as a 48-gon).
-fn outline_local(spec: &BodySpec) -> Vec<Vec2> {
-    match spec.polygon() {
-        Some(p) => p
-            .iter()
-            .map(|v| Vec2::new(v[0] as f32, v[1] as f32))
-            .collect(),
-        None => {
-            let r = spec.radius.unwrap_or(0.0) as f32;
-            (0..48)
-                .map(|k| {
-                    let a = std::f32::consts::TAU * k as f32 / 48.0;
-                    r * Vec2::new(a.cos(), a.sin())
-                })
-                .collect()
-        }
-    }
 }
