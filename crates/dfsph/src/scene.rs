@@ -343,7 +343,7 @@ pub enum SceneError {
     Invalid { key: String, message: String },
 }
 
-fn invalid(key: impl Into<String>, message: impl Into<String>) -> SceneError {
+pub(crate) fn invalid(key: impl Into<String>, message: impl Into<String>) -> SceneError {
     SceneError::Invalid {
         key: key.into(),
         message: message.into(),
@@ -351,7 +351,7 @@ fn invalid(key: impl Into<String>, message: impl Into<String>) -> SceneError {
 }
 
 /// `v` at `key` is a finite number.
-fn finite(key: &str, v: f64) -> Result<(), SceneError> {
+pub(crate) fn finite(key: &str, v: f64) -> Result<(), SceneError> {
     if v.is_finite() {
         Ok(())
     } else {
@@ -360,7 +360,7 @@ fn finite(key: &str, v: f64) -> Result<(), SceneError> {
 }
 
 /// Both coordinates of `p` at `key` are finite (`key[0]`, `key[1]` in the error).
-fn point(key: &str, p: Point) -> Result<(), SceneError> {
+pub(crate) fn point(key: &str, p: Point) -> Result<(), SceneError> {
     finite(&format!("{key}[0]"), p[0])?;
     finite(&format!("{key}[1]"), p[1])
 }

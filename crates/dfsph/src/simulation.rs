@@ -823,46 +823,30 @@ impl Simulation {
 
     /// The impulse the fluid gave each rigid body in the step of `dt` just solved, with its
     /// moment about the body's centre of mass ([`coupling`]).
-    fn rigid_body_impulses(&self, dt: f32) -> Vec<coupling::BodyImpulse> {
+    fn rigid_body_impulses(&mut self, dt: f32) -> Vec<coupling::BodyImpulse> {
         let Some(rigid) = &self.rigid else {
             return Vec::new();
         };
         let rigid_of: Vec<Option<u16>> = self.bodies.iter().map(|b| b.rigid).collect();
         let centres: Vec<Vec2> = (0..rigid.len()).map(|k| rigid.centre_of_mass(k)).collect();
-        let ghost_slope = self
-            .pressure
-            .walls()
+        let walls = self.pressure.walls();
+        let ghost_slope = walls
             .hydrostatic_ghost_gradient(self.gravity)
             .map(|g| g / self.gradient_consistency);
+        let (weight, mass) = (walls.gradient_weight(), self.particle_mass());
+        let pressure_to_kappa = dt * self.pressure.pressure_force_scale();
+        let (step, fluid, _) = self.step_parts(dt);
         // Scenes with bodies run DFSPH (`Scene::validate`), whose solves apply these terms.
         let terms = WallTerms {
-            divergence_stiffness: self
+            divergence_stiffness: step
                 .settings
                 .divergence_solve
-                .then_some(&self.fluid.divergence_stiffness[..]),
-            pressure_to_kappa: dt * self.pressure.pressure_force_scale(),
-            weight: self.pressure.walls().gradient_weight(),
+                .then_some(&fluid.divergence_stiffness[..]),
+            pressure_to_kappa,
+            weight,
             ghost_slope,
         };
-        let step = StepContext {
-            kernel: &self.kernel,
-            volume: self.volume,
-            spacing: self.spacing,
-            dt,
-            gravity: self.gravity,
-            flow_speed: self.stats.max_speed as f32,
-            settings: &self.settings,
-            nb: Neighborhood::new(&self.fluid_lists, &self.boundary_lists, &self.pair_cache),
-            boundary: &self.boundary,
-        };
-        coupling::body_impulses(
-            &step,
-            &self.fluid,
-            &terms,
-            self.particle_mass(),
-            &rigid_of,
-            &centres,
-        )
+        coupling::body_impulses(&step, fluid, &terms, mass, &rigid_of, &centres)
     }
 
     /// Advance the rigid bodies by `dt` under gravity and the fluid's `impulses`, and put

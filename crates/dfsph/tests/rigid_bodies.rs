@@ -36,15 +36,18 @@ fn far_surface(sim: &Simulation, body: &RigidBodyState) -> f32 {
     tops[tops.len() / 2] + 0.5 * d
 }
 
+/// The body's lowest point, m.
+fn lowest(body: &RigidBodyState) -> f32 {
+    body.outline
+        .iter()
+        .map(|p| p.y)
+        .fold(f32::INFINITY, f32::min)
+}
+
 /// The draft: the far free surface minus the body's lowest point, m.
 fn draft(sim: &Simulation) -> f32 {
     let body = &sim.rigid_bodies()[0];
-    let lowest = body
-        .outline
-        .iter()
-        .map(|p| p.y)
-        .fold(f32::INFINITY, f32::min);
-    far_surface(sim, body) - lowest
+    far_surface(sim, body) - lowest(body)
 }
 
 /// Run `sim` to `until` seconds, asserting it stays sound; returns the mean draft over the
@@ -116,11 +119,7 @@ fn a_box_twice_as_dense_as_water_sinks_to_the_floor() {
     // On the floor: at most the one row of water that a flat bottom traps under it (its
     // particles sit between the box's and the floor's boundary layers, a spacing apart).
     let body = &sim.rigid_bodies()[0];
-    let lowest = body
-        .outline
-        .iter()
-        .map(|p| p.y)
-        .fold(f32::INFINITY, f32::min);
+    let lowest = lowest(body);
     assert!(lowest < 1.1 * sim.spacing(), "lowest point at {lowest} m");
     assert!(
         body.velocity.length() < 0.01,
@@ -145,11 +144,7 @@ fn light_and_heavy_bodies_dropped_into_water_stay_sound() {
         // Falling 0.1 m to the water gives 1.4 m/s; nothing may throw the body much faster.
         assert!(fastest < 3.0, "{density}: the body reached {fastest} m/s");
         let body = &sim.rigid_bodies()[0];
-        let lowest = body
-            .outline
-            .iter()
-            .map(|p| p.y)
-            .fold(f32::INFINITY, f32::min);
+        let lowest = lowest(body);
         if density < 1000.0 {
             assert!(lowest > 0.25, "{density}: a light box sank to {lowest} m");
         } else {

@@ -5,7 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::scene::{Point, SceneError, Tank};
+use crate::scene::{finite, invalid, point, Point, SceneError, Tank};
 
 /// Fewest particle spacings a body must measure across: its boundary particles are two layers
 /// thick inside the outline (at d/2 and 3d/2), and thinner the layers would cross.
@@ -90,26 +90,6 @@ pub struct BodySpec {
 
 fn default_friction() -> f64 {
     0.5
-}
-
-fn invalid(key: impl Into<String>, message: impl Into<String>) -> SceneError {
-    SceneError::Invalid {
-        key: key.into(),
-        message: message.into(),
-    }
-}
-
-fn finite(key: &str, v: f64) -> Result<(), SceneError> {
-    if v.is_finite() {
-        Ok(())
-    } else {
-        Err(invalid(key, format!("must be a finite number, got {v}")))
-    }
-}
-
-fn point(key: &str, p: Point) -> Result<(), SceneError> {
-    finite(&format!("{key}[0]"), p[0])?;
-    finite(&format!("{key}[1]"), p[1])
 }
 
 impl BodySpec {
