@@ -315,3 +315,34 @@ fn bodies_stack_on_each_other_and_joints_hold() {
     );
     assert_eq!(sim.total_clamped(), 0);
 }
+
+#[test]
+fn a_shaken_tank_carries_its_floating_bodies_along() {
+    let mut sim =
+        Simulation::new(&pool(BodySpec::new_box([0.2, 0.1], 500.0, [0.6, 0.35]))).unwrap();
+    let start = sim.rigid_bodies()[0].position;
+    sim.apply(&Action::ShakeTank { direction: 1.0 });
+    while sim.time() < 0.6 {
+        assert_eq!(sim.step().non_finite, 0);
+    }
+    let (lo, hi) = sim.tank_interior();
+    assert!(lo.x > 0.05, "the tank moved right: {lo}");
+    let body = &sim.rigid_bodies()[0];
+    assert!(body.outline.iter().all(|p| p.x > lo.x && p.x < hi.x));
+    sim.apply(&Action::ShakeTank { direction: -1.0 });
+    while sim.time() < 1.2 {
+        assert_eq!(sim.step().non_finite, 0);
+    }
+    sim.apply(&Action::ShakeTank { direction: 0.0 });
+    while sim.time() < 2.5 {
+        assert_eq!(sim.step().non_finite, 0);
+    }
+    let body = &sim.rigid_bodies()[0];
+    let (lo, hi) = sim.tank_interior();
+    assert!(body
+        .outline
+        .iter()
+        .all(|p| p.x > lo.x && p.x < hi.x && p.y > lo.y));
+    assert!(body.position != start, "the water moved the box");
+    assert_eq!(sim.total_clamped(), 0);
+}
