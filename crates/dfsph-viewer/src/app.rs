@@ -14,6 +14,7 @@ use dfsph::scene::BUILTIN_SCENES;
 use dfsph::{Action, Scene, Simulation, StepStats};
 use eframe::egui::{self, vec2, Color32, Sense, Stroke, ViewportCommand};
 
+use crate::bodies;
 use crate::export;
 use crate::hud::{self, FrameStats, History, HudInfo, Rate};
 use crate::input::{Command, InputMapper, Tool, ViewInput};
@@ -171,6 +172,8 @@ pub struct ViewerApp {
     video: VideoRecorder,
     /// Told what each frame showed ([`Self::on_frame`]).
     observer: Option<FrameObserver>,
+    /// The held body and the grabbed point in its frame, m (for the line to the pointer).
+    grab_anchor: Option<(usize, dfsph::Vec2)>,
 }
 
 impl ViewerApp {
@@ -239,6 +242,7 @@ impl ViewerApp {
             recorder: None,
             video: VideoRecorder::default(),
             observer: None,
+            grab_anchor: None,
         })
     }
 
@@ -329,6 +333,7 @@ impl ViewerApp {
         match build_simulation(scene, requested_max_particles) {
             Ok(sim) => {
                 self.sim.replace(sim);
+                self.grab_anchor = None;
                 self.requested_max_particles = requested_max_particles;
                 self.mapper
                     .reset(self.sim.gravity(), 2.0 * self.sim.particle_radius());
@@ -417,6 +422,19 @@ impl ViewerApp {
         match cmd {
             Command::Sim(action) => {
                 let outcome = self.sim.apply(&action);
+                match &action {
+                    Action::GrabBody { at } => {
+                        self.grab_anchor = self.sim.dragged_body().and_then(|(k, _)| {
+                            let body = self.sim.rigid_bodies().into_iter().nth(k)?;
+                            Some((k, bodies::body_frame_point(&body, *at)))
+                        });
+                        if outcome.rejected.is_some() {
+                            self.mapper.forget_body();
+                        }
+                    }
+                    Action::ReleaseBody => self.grab_anchor = None,
+                    _ => {}
+                }
                 if let Some(why) = outcome.rejected {
                     self.set_status(format!("rejected: {why}"));
                 } else if matches!(action, Action::Emit { .. })
@@ -489,6 +507,10 @@ impl ViewerApp {
                 let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
                 let said = self.video.toggle(&self.sim, &dir);
                 self.set_status(said);
+            }
+            Command::DropBody { shape, at } => {
+                let body = bodies::drop_spec(&self.sim, shape, at, self.mapper.body_density);
+                self.apply(ctx, Command::Sim(Action::AddBody { body }));
             }
             // The view commands are applied where the view's geometry is known (`update`).
             Command::ZoomView { .. } | Command::PanView { .. } | Command::ResetView => {}
@@ -759,10 +781,13 @@ impl eframe::App for ViewerApp {
         // colour bar beside it (a drag that started in it keeps going anywhere).
         let over_view = (response.hovered() && hover.is_some_and(|p| layout.world.contains(p)))
             || response.dragged();
+        let pointer = hover.filter(|_| over_view).map(|p| transform.to_world(p));
+        let over_body = pointer.is_some_and(|p| self.sim.rigid_body_at(p).is_some());
         let view = ViewInput {
-            pointer: hover.filter(|_| over_view).map(|p| transform.to_world(p)),
+            pointer,
             // The open-scene dialog's keys are its own.
             keyboard: !ctx.wants_keyboard_input() && !self.opener.is_open(),
+            over_body,
         };
         commands.extend(ctx.input(|i| self.mapper.update(i, view)));
 
@@ -780,8 +805,10 @@ impl eframe::App for ViewerApp {
         // A reset or a new scene may have changed the world bounds.
         let (lo, hi) = render::world_bounds(&self.sim);
         let transform = self.camera.transform(lo, hi, layout.world);
-        if self.mapper.tool() == Tool::Pan {
+        if matches!(self.mapper.tool(), Tool::Pan | Tool::Drag) {
             ctx.set_cursor_icon(egui::CursorIcon::Grabbing);
+        } else if over_body && self.mapper.tool() == Tool::Idle {
+            ctx.set_cursor_icon(egui::CursorIcon::Grab);
         }
         let world_painter = painter.with_clip_rect(layout.world);
         self.draw(
@@ -872,6 +899,21 @@ impl ViewerApp {
         coloring.colors(&self.values, scale.range, &mut self.fluid_colors);
         let mesh = render::particle_mesh(&self.sim, transform, self.disc.id(), &self.fluid_colors);
         world_painter.add(egui::Shape::mesh(mesh));
+        // The bodies over the water that touches them; their boundary particles are not drawn.
+        let rigid = self.sim.rigid_bodies();
+        bodies::draw_bodies(world_painter, transform, &rigid);
+        if let (Some((k, target)), Some((held, local))) =
+            (self.sim.dragged_body(), self.grab_anchor)
+        {
+            if let Some(body) = rigid.get(k).filter(|_| k == held) {
+                let from = transform.to_screen(bodies::grabbed_point(body, local));
+                let to = transform.to_screen(target);
+                let stroke = Stroke::new(1.5, Color32::from_white_alpha(200));
+                world_painter.line_segment([from, to], stroke);
+                world_painter.circle_filled(from, 3.0, Color32::WHITE);
+                world_painter.circle_stroke(to, 4.0, stroke);
+            }
+        }
         self.draw_probes(world_painter, transform);
 
         // Wall preview and the tool circle.
@@ -890,7 +932,7 @@ impl ViewerApp {
                 Tool::Push => Color32::from_rgb(255, 170, 80),
                 Tool::Pour => Color32::from_rgb(80, 140, 255),
                 Tool::Erase => Color32::from_rgb(255, 80, 80),
-                Tool::Wall | Tool::Pan => Color32::TRANSPARENT,
+                Tool::Wall | Tool::Pan | Tool::Drag => Color32::TRANSPARENT,
                 Tool::Idle if erase_armed => Color32::from_rgb(255, 80, 80),
                 Tool::Idle => Color32::from_white_alpha(110),
             };

@@ -5,7 +5,7 @@
 //! simulation, so it is unit-tested by feeding an `egui::Context` synthetic events.
 
 use dfsph::forces::MAX_POINTER_ACCELERATION;
-use dfsph::scene::BUILTIN_SCENES;
+use dfsph::scene::{BodyShape, BUILTIN_SCENES};
 use dfsph::{Action, Vec2};
 use eframe::egui::{self, Key, PointerButton};
 
@@ -21,6 +21,14 @@ pub const KEY_HELP: &[(&str, &str)] = &[
         "pour water at the cursor (within the particle budget)",
     ),
     ("Shift + left drag", "draw a wall (added on release)"),
+    (
+        "B / O",
+        "drop a box / a circle at the cursor (its density: the panel's body density)",
+    ),
+    (
+        "left drag on a body",
+        "drag the body (whatever the left-drag tool is)",
+    ),
     (
         "X + left click/drag",
         "erase water and drawn walls under the cursor",
@@ -116,6 +124,20 @@ fn command_pressed(input: &egui::InputState, key: Key) -> bool {
     })
 }
 
+/// How many times `key` went down this frame without Ctrl, Cmd or Alt (Shift is allowed:
+/// `B` is `b`), key repeat left out: a held key drops one body, and Ctrl+O opens a scene
+/// without dropping a circle.
+fn plain_presses(input: &egui::InputState, key: Key) -> usize {
+    input
+        .events
+        .iter()
+        .filter(|e| {
+            matches!(e, egui::Event::Key { key: k, pressed: true, repeat: false, modifiers, .. }
+                if *k == key && !(modifiers.command || modifiers.ctrl || modifiers.mac_cmd || modifiers.alt))
+        })
+        .count()
+}
+
 /// Gravity tilt per press of `q` / `e`, degrees.
 pub const TILT_STEP_DEG: f32 = 5.0;
 /// Largest gravity tilt, degrees either way.
@@ -159,6 +181,10 @@ pub enum Command {
     PanView { delta: egui::Vec2 },
     /// Fit the whole world in the view again.
     ResetView,
+    /// Drop a rigid body of this shape (box or circle), centred at `at` (m, in the world as
+    /// the view shows it) or, without a point, at the top of the tank's middle; sized for the
+    /// scene and of the mapper's [`InputMapper::body_density`] (`crate::bodies::drop_spec`).
+    DropBody { shape: BodyShape, at: Option<Vec2> },
 }
 
 /// Where the pointer is, as far as the simulation view is concerned.
@@ -169,6 +195,8 @@ pub struct ViewInput {
     pub pointer: Option<Vec2>,
     /// The keyboard belongs to the viewer (no text field has focus).
     pub keyboard: bool,
+    /// A rigid body lies under the pointer: pressing the primary button grabs it.
+    pub over_body: bool,
 }
 
 /// What the pointer tool is doing this frame (for drawing the cursor circle).
@@ -189,6 +217,8 @@ pub enum Tool {
     Wall,
     /// Moving the view (middle drag, space + drag).
     Pan,
+    /// Dragging a rigid body (left drag that started on one).
+    Drag,
 }
 
 /// What the primary button (a left drag, a finger on a touch screen) does. The other buttons
@@ -250,6 +280,8 @@ pub struct InputMapper {
     pub primary_tool: PrimaryTool,
     /// The side panel's shake buttons held: -1 left, 1 right, 0 none (set each frame).
     pub panel_shake: f32,
+    /// Density of the next body dropped (`b`, `o`, the panel's buttons), kg/m³.
+    pub body_density: f64,
     /// Magnitude of gravity, m/s².
     gravity_magnitude: f32,
     /// Gravity's angle from straight down, degrees (positive tips it towards +x).
@@ -265,6 +297,8 @@ pub struct InputMapper {
     space_held: Option<bool>,
     /// Where the pointer was when the view last moved with it, screen points (while panning).
     pan_from: Option<egui::Pos2>,
+    /// A body is held (grabbed with the primary button): the last target sent, m.
+    body_target: Option<Vec2>,
 }
 
 impl Default for InputMapper {
@@ -276,6 +310,7 @@ impl Default for InputMapper {
             wall_point_spacing: 0.02,
             primary_tool: PrimaryTool::Pull,
             panel_shake: 0.0,
+            body_density: crate::bodies::DEFAULT_BODY_DENSITY,
             gravity_magnitude: 9.81,
             tilt_deg: 0.0,
             shake: 0.0,
@@ -284,6 +319,7 @@ impl Default for InputMapper {
             tool: Tool::Idle,
             space_held: None,
             pan_from: None,
+            body_target: None,
         }
     }
 }
@@ -308,6 +344,7 @@ impl InputMapper {
         self.shake = 0.0;
         self.pointer_active = false;
         self.wall = None;
+        self.body_target = None;
         self.tool = Tool::Idle;
         self.wall_point_spacing = 2.0 * spacing;
         self.radius_limits.0 = 2.0 * spacing;
@@ -352,11 +389,25 @@ impl InputMapper {
         self.tool
     }
 
+    /// Forget the held body without a [`Action::ReleaseBody`] (its grab was rejected: there
+    /// was no body there after all).
+    pub fn forget_body(&mut self) {
+        self.body_target = None;
+    }
+
     /// Map one frame of input to commands.
     pub fn update(&mut self, input: &egui::InputState, view: ViewInput) -> Vec<Command> {
         let mut out = Vec::new();
         if view.keyboard {
             self.keys(input, &mut out);
+            for (key, shape) in [(Key::B, BodyShape::Box), (Key::O, BodyShape::Circle)] {
+                for _ in 0..plain_presses(input, key) {
+                    out.push(Command::DropBody {
+                        shape,
+                        at: view.pointer,
+                    });
+                }
+            }
         } else {
             // A space released while a text field had the keys must not pause later.
             self.space_held = None;
@@ -448,6 +499,11 @@ impl InputMapper {
                 out.push(Command::Sim(Action::AddWall { polyline: wall }));
             }
         }
+        // So does a held body.
+        if self.body_target.is_some() && (!primary || view.pointer.is_none()) {
+            self.body_target = None;
+            out.push(Command::Sim(Action::ReleaseBody));
+        }
 
         let Some(at) = view.pointer else {
             self.pan_from = None;
@@ -479,6 +535,27 @@ impl InputMapper {
                     about: at,
                 });
             }
+        }
+
+        // A body under the pointer when the primary button goes down is grabbed, whatever
+        // the primary tool; Shift (a wall), X (erasing) and Space (panning) keep their own
+        // meaning. It follows the pointer until the button is released.
+        if let Some(last) = self.body_target {
+            self.tool = Tool::Drag;
+            if last != at {
+                self.body_target = Some(at);
+                out.push(Command::Sim(Action::DragBody { target: at }));
+            }
+            self.release(out);
+            return;
+        }
+        let modified = input.modifiers.shift || keys(Key::X) || self.space_held.is_some();
+        if primary && p.primary_pressed() && view.over_body && !modified && self.wall.is_none() {
+            self.tool = Tool::Drag;
+            self.body_target = Some(at);
+            self.release(out);
+            out.push(Command::Sim(Action::GrabBody { at }));
+            return;
         }
 
         // Panning: middle drag, or left drag with Space held. It takes the pointer from the
@@ -577,6 +654,8 @@ mod tests {
         ctx: egui::Context,
         mapper: InputMapper,
         pointer: Option<Vec2>,
+        /// A body lies under the pointer.
+        over_body: bool,
     }
 
     impl Harness {
@@ -585,6 +664,7 @@ mod tests {
                 ctx: egui::Context::default(),
                 mapper: InputMapper::new(Vec2::new(0.0, -9.81), 0.02),
                 pointer: Some(Vec2::new(1.0, 0.5)),
+                over_body: false,
             }
         }
 
@@ -602,6 +682,7 @@ mod tests {
             let view = ViewInput {
                 pointer: self.pointer,
                 keyboard: true,
+                over_body: self.over_body,
             };
             let _ = self.ctx.run(raw, |ctx| {
                 out = ctx.input(|i| self.mapper.update(i, view));
@@ -680,6 +761,7 @@ mod tests {
             let view = ViewInput {
                 pointer: None,
                 keyboard: false,
+                over_body: false,
             };
             out = ctx.input(|i| h.mapper.update(i, view));
         });
@@ -735,7 +817,7 @@ mod tests {
     }
 
     #[test]
-    fn ctrl_s_saves_and_ctrl_o_opens_but_plain_s_and_o_do_nothing() {
+    fn ctrl_s_saves_and_ctrl_o_opens_but_plain_s_does_nothing() {
         let mut h = Harness::new();
         let ctrl = |k: Key| Event::Key {
             key: k,
@@ -752,7 +834,7 @@ mod tests {
             h.frame_with(vec![ctrl(Key::O)], Modifiers::COMMAND),
             vec![Command::OpenScene]
         );
-        assert_eq!(h.frame(vec![key(Key::S, true), key(Key::O, true)]), vec![]);
+        assert_eq!(h.frame(vec![key(Key::S, true)]), vec![]);
         // A whole chord within one slow frame: Ctrl is up again by the frame's end, but it
         // was down when S went down.
         assert_eq!(
@@ -1069,6 +1151,8 @@ mod tests {
             "H or ?",
             "Ctrl+S",
             "Ctrl+O",
+            "B / O",
+            "on a body",
         ] {
             assert!(text.contains(needle), "{needle}");
         }
@@ -1090,5 +1174,141 @@ mod tests {
             let next = SCENE_KEYS[BUILTIN_SCENES.len()];
             assert_eq!(h.frame(vec![key(next, true)]), vec![]);
         }
+    }
+
+    #[test]
+    fn b_and_o_drop_a_box_and_a_circle_at_the_cursor_but_ctrl_o_does_not() {
+        let mut h = Harness::new();
+        let at = h.pointer;
+        assert_eq!(
+            h.frame(vec![key(Key::B, true), key(Key::B, false)]),
+            vec![Command::DropBody {
+                shape: BodyShape::Box,
+                at
+            }]
+        );
+        assert_eq!(
+            h.frame(vec![key(Key::O, true), key(Key::O, false)]),
+            vec![Command::DropBody {
+                shape: BodyShape::Circle,
+                at
+            }]
+        );
+        // Key repeat while held drops nothing more (egui marks a press of a key already
+        // down as a repeat).
+        assert_eq!(h.frame(vec![key(Key::B, true)]).len(), 1);
+        assert_eq!(h.frame(vec![key(Key::B, true)]), vec![]);
+        h.frame(vec![key(Key::B, false)]);
+        // Ctrl+O opens a scene, and only that.
+        let ctrl_o = Event::Key {
+            key: Key::O,
+            physical_key: None,
+            pressed: true,
+            repeat: false,
+            modifiers: Modifiers::COMMAND,
+        };
+        assert_eq!(
+            h.frame_with(vec![ctrl_o], Modifiers::COMMAND),
+            vec![Command::OpenScene]
+        );
+        // Off the view: dropped at the tank's top (the app decides where).
+        h.pointer = None;
+        assert_eq!(
+            h.frame(vec![key(Key::B, true)]),
+            vec![Command::DropBody {
+                shape: BodyShape::Box,
+                at: None
+            }]
+        );
+    }
+
+    #[test]
+    fn a_left_press_on_a_body_grabs_it_whatever_the_tool_and_release_lets_go() {
+        for tool in PrimaryTool::ALL {
+            let mut h = Harness::new();
+            h.mapper.primary_tool = tool;
+            h.over_body = true;
+            let at = h.pointer.unwrap();
+            let (down, drag, up) = press_and_release(&mut h);
+            assert_eq!(
+                down,
+                vec![Command::Sim(Action::GrabBody { at })],
+                "{tool:?}"
+            );
+            assert_eq!(
+                drag,
+                vec![Command::Sim(Action::DragBody {
+                    target: Vec2::new(1.4, 0.6)
+                })],
+                "{tool:?}"
+            );
+            assert_eq!(up, vec![Command::Sim(Action::ReleaseBody)], "{tool:?}");
+            assert_eq!(h.mapper.tool(), Tool::Idle);
+        }
+    }
+
+    #[test]
+    fn a_held_body_follows_the_pointer_only_when_it_moves_and_off_the_view_is_let_go() {
+        let mut h = Harness::new();
+        h.over_body = true;
+        h.frame(vec![
+            moved(),
+            button(PointerButton::Primary, true, Modifiers::NONE),
+        ]);
+        assert_eq!(h.mapper.tool(), Tool::Drag);
+        // The pointer leaves the body behind (the body lags): still dragging.
+        h.over_body = false;
+        assert_eq!(h.frame(vec![]), vec![]);
+        h.pointer = Some(Vec2::new(2.0, 1.0));
+        assert_eq!(
+            h.frame(vec![moved_to(120.0, 90.0)]),
+            vec![Command::Sim(Action::DragBody {
+                target: Vec2::new(2.0, 1.0)
+            })]
+        );
+        h.pointer = None;
+        assert_eq!(h.frame(vec![]), vec![Command::Sim(Action::ReleaseBody)]);
+    }
+
+    #[test]
+    fn shift_and_x_on_a_body_keep_their_tools_and_a_rejected_grab_is_forgotten() {
+        let mut h = Harness::new();
+        h.over_body = true;
+        let out = h.frame_with(
+            vec![
+                moved(),
+                button(PointerButton::Primary, true, Modifiers::SHIFT),
+            ],
+            Modifiers::SHIFT,
+        );
+        assert_eq!(out, vec![]);
+        assert_eq!(h.mapper.tool(), Tool::Wall);
+        h.frame(vec![button(PointerButton::Primary, false, Modifiers::NONE)]);
+        let out = h.frame(vec![
+            key(Key::X, true),
+            button(PointerButton::Primary, true, Modifiers::NONE),
+        ]);
+        assert!(
+            matches!(out.as_slice(), [Command::Sim(Action::Erase { .. })]),
+            "{out:?}"
+        );
+        h.frame(vec![
+            key(Key::X, false),
+            button(PointerButton::Primary, false, Modifiers::NONE),
+        ]);
+        // A grab the simulation refused: no drags, no release follow it.
+        let out = h.frame(vec![button(PointerButton::Primary, true, Modifiers::NONE)]);
+        assert!(matches!(
+            out.as_slice(),
+            [Command::Sim(Action::GrabBody { .. })]
+        ));
+        h.mapper.forget_body();
+        h.over_body = false;
+        h.pointer = Some(Vec2::new(1.2, 0.5));
+        let out = h.frame(vec![moved_to(110.0, 100.0)]);
+        assert!(
+            matches!(out.as_slice(), [Command::Sim(Action::Push { .. })]),
+            "back to pulling: {out:?}"
+        );
     }
 }

@@ -17,6 +17,7 @@
 use std::path::PathBuf;
 
 pub mod app;
+pub mod bodies;
 pub mod export;
 pub mod hud;
 pub mod input;

@@ -3,7 +3,9 @@
 //! `SetTimeStep`, `SetGravity`) applied between steps, like any other input.
 
 use dfsph::forces::MAX_POINTER_ACCELERATION;
-use dfsph::scene::{Method, BUILTIN_SCENES};
+use dfsph::rigid::spec::BODY_DENSITY_RANGE;
+use dfsph::rigid::MAX_BODIES;
+use dfsph::scene::{BodyShape, Method, BUILTIN_SCENES};
 use dfsph::{Action, Simulation};
 use eframe::egui::{self, Slider};
 
@@ -277,6 +279,39 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
             )
             .text("push/pull (m/s²)"),
         );
+
+        ui.separator();
+        ui.label(egui::RichText::new("Bodies").strong());
+        ui.horizontal(|ui| {
+            let drop = [
+                ("drop box", BodyShape::Box, "B: a box at the cursor"),
+                (
+                    "drop circle",
+                    BodyShape::Circle,
+                    "O: a circle at the cursor",
+                ),
+            ];
+            for (label, shape, key) in drop {
+                let hint = format!("At the top of the tank's middle ({key}); left drag moves it");
+                if ui.button(label).on_hover_text(hint).clicked() {
+                    out.push(Command::DropBody { shape, at: None });
+                }
+            }
+        });
+        let (lo, hi) = BODY_DENSITY_RANGE;
+        ui.add(
+            Slider::new(&mut st.mapper.body_density, lo..=hi)
+                .logarithmic(true)
+                .max_decimals(0)
+                .text("next body density (kg/m³)"),
+        )
+        .on_hover_text(
+            "Of the next box or circle dropped; water is 1,000: lighter floats, heavier sinks",
+        );
+        ui.label(format!(
+            "bodies: {} of {MAX_BODIES}",
+            sim.rigid_body_count()
+        ));
         egui::ComboBox::from_label("colouring")
             .selected_text(st.coloring.label())
             .show_ui(ui, |ui| {

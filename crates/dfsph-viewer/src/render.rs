@@ -343,7 +343,8 @@ pub fn push_discs(
 }
 
 /// One mesh for every particle: boundary particles (grey) first, fluid on top, each drawn at
-/// the physical particle radius (never smaller than half a screen point).
+/// the physical particle radius (never smaller than half a screen point). The rigid bodies'
+/// boundary particles are left out: the bodies are drawn whole (`crate::bodies`).
 pub fn particle_mesh(
     sim: &Simulation,
     transform: &ViewTransform,
@@ -352,20 +353,34 @@ pub fn particle_mesh(
 ) -> Mesh {
     let mut mesh = Mesh::with_texture(texture);
     let radius = (sim.particle_radius() * transform.scale()).max(0.5);
+    let color = |body: u16| {
+        if body == 0 {
+            TANK_COLOR
+        } else {
+            WALL_COLOR
+        }
+    };
     let bodies = sim.boundary_bodies();
-    push_discs(
-        &mut mesh,
-        transform,
-        sim.boundary_positions(),
-        radius,
-        |i| {
-            if bodies.get(i).copied().unwrap_or(0) == 0 {
-                TANK_COLOR
-            } else {
-                WALL_COLOR
-            }
-        },
-    );
+    if sim.rigid_body_count() == 0 {
+        push_discs(
+            &mut mesh,
+            transform,
+            sim.boundary_positions(),
+            radius,
+            |i| color(bodies.get(i).copied().unwrap_or(0)),
+        );
+    } else {
+        let top = bodies.iter().copied().max().unwrap_or(0);
+        let rigid: Vec<bool> = (0..=top).map(|b| sim.rigid_body_of(b).is_some()).collect();
+        let (walls, ids): (Vec<Vec2>, Vec<u16>) = sim
+            .boundary_positions()
+            .iter()
+            .zip(bodies)
+            .filter(|(_, &b)| !rigid[b as usize])
+            .map(|(&p, &b)| (p, b))
+            .unzip();
+        push_discs(&mut mesh, transform, &walls, radius, |i| color(ids[i]));
+    }
     push_discs(&mut mesh, transform, sim.positions(), radius, |i| {
         fluid_colors.get(i).copied().unwrap_or(Color32::LIGHT_BLUE)
     });

@@ -981,6 +981,15 @@ impl Simulation {
         self.rigid.as_ref().and_then(|r| r.body_at(at))
     }
 
+    /// The rigid body (index into [`Self::rigid_bodies`]) whose boundary particles carry the
+    /// id `body` of [`Self::boundary_bodies`]; `None` for the tank, obstacles and drawn walls.
+    pub fn rigid_body_of(&self, body: BodyId) -> Option<usize> {
+        self.bodies
+            .get(body as usize)
+            .and_then(|b| b.rigid)
+            .map(usize::from)
+    }
+
     /// The rigid body the pointer holds and where it pulls it, m.
     pub fn dragged_body(&self) -> Option<(usize, Vec2)> {
         self.rigid.as_ref().and_then(|r| r.dragged())
