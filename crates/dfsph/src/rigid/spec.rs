@@ -23,6 +23,11 @@ pub const BODY_DENSITY_RANGE: (f64, f64) = (50.0, 25_000.0);
 pub const MAX_BODY_SPEED: f64 = 100.0;
 pub const MAX_BODY_SPIN: f64 = 1_000.0;
 
+/// How far past the tank's walls a body may reach, in particle spacings: a body resting on
+/// the floor sinks about 0.3 mm into it (rapier's allowed penetration), and the saved state
+/// of such a body must load again.
+pub const BODY_WALL_SLACK: f64 = 0.25;
+
 /// Most vertices a polygon may have.
 pub const MAX_POLYGON_VERTICES: usize = 64;
 
@@ -386,16 +391,21 @@ impl BodySpec {
         }
         let e = self.half_extent();
         let eps = tank.edge_tolerance();
+        // A body resting on the floor or against a wall sinks a fraction of a millimetre into
+        // it (rapier's contacts allow that much), and a saved state must load again.
+        let slack = BODY_WALL_SLACK * d + eps;
         for axis in 0..2 {
             let (a, b) = (self.position[axis] - e[axis], self.position[axis] + e[axis]);
-            if a < tank.min[axis] - eps || b > tank.max[axis] + eps {
+            if a < tank.min[axis] - slack || b > tank.max[axis] + slack {
                 return Err(invalid(
                     format!("{key}.position[{axis}]"),
                     format!(
-                        "the body spans {a:.4}–{b:.4} m along {}, outside the tank ({}–{} m)",
+                        "the body spans {a:.4}–{b:.4} m along {}, outside the tank ({}–{} m, \
+                         give or take {:.4} m)",
                         ["x", "y"][axis],
                         tank.min[axis],
-                        tank.max[axis]
+                        tank.max[axis],
+                        slack
                     ),
                 ));
             }
