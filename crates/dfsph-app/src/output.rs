@@ -641,6 +641,55 @@ mod tests {
     }
 
     #[test]
+    fn bodies_files_start_with_the_first_body() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(dir.path().join(PARTICLES_DIR)).unwrap();
+        let mut manifest = Manifest::create(dir.path()).unwrap();
+        let mut scene = dfsph::scene::builtin("dam-break").unwrap();
+        scene.particle_radius = 0.05;
+        let mut sim = Simulation::new(&scene).unwrap();
+        let mut frames =
+            FrameWriter::create(dir.path(), &[Format::Vtk], &scene, 320, 0.05, &mut manifest)
+                .unwrap();
+        frames.write(&sim, &mut manifest).unwrap();
+        sim.step();
+        frames.write(&sim, &mut manifest).unwrap();
+        // No body yet: no bodies files.
+        assert!(!dir.path().join(BODIES_CSV).exists());
+        assert!(!dir.path().join("particles/bodies_00001.vtu").exists());
+        // A body dropped in (as a replayed recording does): from this frame on.
+        let body = dfsph::rigid::BodySpec::new_box([0.4, 0.4], 500.0, [2.5, 1.5]);
+        assert_eq!(sim.apply(&dfsph::Action::AddBody { body }).rejected, None);
+        sim.step();
+        frames.write(&sim, &mut manifest).unwrap();
+        sim.step();
+        frames.write(&sim, &mut manifest).unwrap();
+        frames.finish().unwrap();
+
+        let csv = std::fs::read_to_string(dir.path().join(BODIES_CSV)).unwrap();
+        let frames: Vec<&str> = csv.lines().map(|l| l.split(',').next().unwrap()).collect();
+        assert_eq!(frames, ["frame", "2", "3"], "{csv}");
+        let pvd = std::fs::read_to_string(dir.path().join("particles/bodies.pvd")).unwrap();
+        let files: Vec<&str> = pvd
+            .lines()
+            .filter_map(|l| l.split("file=\"").nth(1)?.split('"').next())
+            .collect();
+        assert_eq!(files, ["bodies_00002.vtu", "bodies_00003.vtu"]);
+        assert!(!dir.path().join("particles/bodies_00001.vtu").exists());
+        let listed = std::fs::read_to_string(dir.path().join(MANIFEST)).unwrap();
+        for name in [
+            BODIES_CSV,
+            "particles/bodies.pvd",
+            "particles/bodies_00002.vtu",
+            "particles/bodies_00003.vtu",
+        ] {
+            assert!(listed.lines().any(|l| l == name), "{name}: {listed}");
+            assert!(is_our_output(name), "{name}");
+        }
+        assert!(!is_bodies_file("bodies_00003.csv") && !is_our_output("particles/bodies.csv"));
+    }
+
+    #[test]
     fn output_dir_must_not_be_a_file() {
         let dir = tempfile::tempdir().unwrap();
         assert!(check_output_dir(&dir.path().join("new")).is_ok());

@@ -219,7 +219,7 @@ fn the_floating_scene_runs() {
     let resolved = std::fs::read_to_string(first.join("scene.json")).unwrap();
     let mut scene: serde_json::Value = serde_json::from_str(&resolved).unwrap();
     assert_eq!(scene["bodies"].as_array().unwrap().len(), 4);
-    scene["particle_radius"] = serde_json::json!(0.03);
+    scene["particle_radius"] = serde_json::json!(0.05);
     let path = write_scene(
         tmp.path(),
         "floating-coarse.json",
