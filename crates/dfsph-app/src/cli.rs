@@ -56,7 +56,10 @@ push and pull with the pointer, pour (up to the viewer's particle budget: the sc
 as much again, at least 2,000 more, within max_particles), draw walls through the water, erase,
 tilt and scale gravity (0-30 m/s², ±45°), change viscosity (XSPH 0-0.5, kinematic 0-0.1 m²/s)
 live, change the solver's tolerances (density 0.001-0.5 %, divergence 0.01-10 %, 100-1000
-iterations) and the time step (CFL 0.1-0.6, max Δt 0.25-2.5 ms) live, and reset. (The viewer's
+iterations) and the time step (CFL 0.1-0.6, max Δt 0.25-2.5 ms) live, and reset. Rigid bodies:
+at the start (and after each reset) two to four boxes and circles of 100-8,000 kg/m³ dropped
+downstream of the water, on the floor and in the air, for the surge to slam into the far wall;
+later more dropped from above (up to 8), and bodies grabbed and dragged about. (The viewer's
 time scale only changes how many steps a frame takes, which a step-by-step run does not see.)
 
 Violations:
@@ -64,8 +67,11 @@ Violations:
     became non-finite;
   - a fluid particle outside the tank (beyond the centre line of its first wall layer, at least
     d/2 outside the interior);
-  - a fluid particle count that differs from initial + poured − erased, or exceeds the budget;
-  - a particle clamped back into the tank (the wall leaked);
+  - a fluid particle count that differs from initial + poured − erased (− the water a dropped
+    body covered), or exceeds the budget;
+  - a particle clamped back into the tank or pushed out of a rigid body (a wall leaked);
+  - a fluid particle inside a rigid body: its centre more than d/2 within the body's outline;
+  - a rigid body that is not finite, or reaches more than one spacing d out of the tank;
   - a density error above the bound: the largest single-particle compression after the density
     solve, (ρ − ρ0)/ρ0, above --density-bound percent (default 5 %) in any step;
   - a panic in the solver.

@@ -291,12 +291,18 @@ fn run(args: RunArgs) -> Result<(), Failure> {
         return Err(Failure {
             code: SIMULATION_FAILED,
             message: format!(
-                "{} clamped back into the tank over the run (water went through a wall); the \
+                "{} clamped back into the tank over the run (water went through a wall{}); the \
                  output is complete in `{}`",
                 if outcome.clamped == 1 {
                     "1 particle was".to_string()
                 } else {
                     format!("{} particles were", outcome.clamped)
+                },
+                // The count includes those pushed back out of a rigid body.
+                if outcome.bodies > 0 {
+                    " or into a rigid body"
+                } else {
+                    ""
                 },
                 plan.out.display()
             ),

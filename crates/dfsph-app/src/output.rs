@@ -9,6 +9,10 @@
 //! DIR/particles/walls_NNNNN.vtu the walls (tank, obstacles, drawn walls) as boundary
 //!                             particles, VTK only, written when they changed
 //! DIR/particles/walls.pvd     ParaView collection of the walls at every frame's time
+//! DIR/bodies.csv              the rigid bodies at every snapshot (scenes with bodies only)
+//! DIR/particles/bodies_NNNNN.vtu the rigid bodies' outlines as polygons, VTK only, from the
+//!                             first frame with a body on
+//! DIR/particles/bodies.pvd    ParaView collection of the bodies' files with their times
 //! DIR/video.gif, video.mp4    every snapshot's picture in one animation (`--format gif,mp4`)
 //! DIR/.dfsph2d-manifest       every file above that this run wrote, one per line
 //! ```
@@ -17,8 +21,14 @@
 //! renamed when the run ends, so `video.gif` exists only complete; a run stopped by an error
 //! leaves neither, a run stopped by Ctrl-C finishes the video with the frames it wrote.
 //!
+//! `bodies.csv` has the columns `frame,time,body,x,y,angle,vx,vy,omega`, one row per body
+//! per snapshot (`frame` and `time` as in `index.csv`). It is created with the first
+//! snapshot that has a body (a scene without bodies, replayed without dropping one in, has
+//! none, not an empty one); a frame's rows go to the file in one write.
+//!
 //! What a run completed survives however it stops (SIGKILL, a full disk): `stats.csv`,
-//! `probes.csv` and `index.csv` grow one complete line at a time, on disk at once; snapshots,
+//! `probes.csv`, `bodies.csv` and `index.csv` grow one complete line (`bodies.csv`: one
+//! complete frame) at a time, on disk at once; snapshots,
 //! `scene.json` and `particles.pvd` are written to `NAME.tmp`, synced and renamed, and a
 //! frame is listed in `index.csv` and `particles.pvd` only once all its files are complete.
 //!
@@ -43,6 +53,9 @@ pub const PARTICLES_DIR: &str = "particles";
 
 /// The list of files a run wrote, in the output directory, relative to it.
 pub const MANIFEST: &str = ".dfsph2d-manifest";
+
+/// The rigid bodies at every snapshot, in the output directory.
+pub const BODIES_CSV: &str = "bodies.csv";
 
 /// The GIF of `--format gif`, in the output directory.
 pub const GIF_FILE: &str = "video.gif";
@@ -195,12 +208,16 @@ fn is_our_output(name: &str) -> bool {
         Some((PARTICLES_DIR, file)) => {
             is_frame_file(file)
                 || is_walls_file(file)
-                || matches!(file, "index.csv" | "particles.pvd" | "walls.pvd")
+                || is_bodies_file(file)
+                || matches!(
+                    file,
+                    "index.csv" | "particles.pvd" | "walls.pvd" | "bodies.pvd"
+                )
         }
         Some(_) => false,
         None => matches!(
             name,
-            "scene.json" | "stats.csv" | "probes.csv" | GIF_FILE | MP4_FILE
+            "scene.json" | "stats.csv" | "probes.csv" | BODIES_CSV | GIF_FILE | MP4_FILE
         ),
     }
 }
@@ -254,6 +271,12 @@ fn is_walls_file(name: &str) -> bool {
         .is_some_and(|rest| is_frame_file(rest) && rest.ends_with(".vtu"))
 }
 
+/// `bodies_00042.vtu`: the rigid bodies at frame 42.
+fn is_bodies_file(name: &str) -> bool {
+    name.strip_prefix("bodies_")
+        .is_some_and(|rest| is_frame_file(rest) && rest.ends_with(".vtu"))
+}
+
 /// `00042.csv`, `00042.vtu`, `123456.png`: a snapshot file this program writes.
 fn is_frame_file(name: &str) -> bool {
     let Some((stem, ext)) = name.rsplit_once('.') else {
@@ -268,6 +291,9 @@ fn is_frame_file(name: &str) -> bool {
 /// (appended, on disk at once) and, for VTK output, a new `particles.pvd` (rewritten
 /// atomically), so the index of a run stopped at any point lists exactly its complete frames.
 pub struct FrameWriter {
+    /// The output directory.
+    out: PathBuf,
+    /// Its `particles` directory.
     dir: PathBuf,
     /// Formats with a file per snapshot (csv, vtk, png).
     formats: Vec<Format>,
@@ -288,6 +314,11 @@ pub struct FrameWriter {
     wall_files: Vec<String>,
     /// The boundary particles and bodies of the last walls file written.
     last_walls: Option<(Vec<dfsph::Vec2>, Vec<u16>)>,
+    /// `bodies.csv`, from the first frame with a rigid body on.
+    bodies_csv: Option<dfsph_io::AppendFile>,
+    /// The frames with a `bodies_NNNNN.vtu` (VTK output): every one from the first with a
+    /// rigid body on, as (time, file).
+    body_files: Vec<(f64, String)>,
     png: RenderOptions,
     /// Step of the last frame written.
     last_step: Option<u64>,
@@ -344,6 +375,7 @@ impl FrameWriter {
             manifest.record(&format!("{PARTICLES_DIR}/walls.pvd"))?;
         }
         Ok(Self {
+            out: out.to_path_buf(),
             dir,
             formats,
             pictures,
@@ -356,6 +388,8 @@ impl FrameWriter {
             pvd_frames: 0,
             wall_files: Vec::new(),
             last_walls: None,
+            bodies_csv: None,
+            body_files: Vec::new(),
             png: RenderOptions {
                 width: png_width,
                 speed_max: dfsph_io::render::speed_scale(scene),
@@ -385,6 +419,10 @@ impl FrameWriter {
         let frame = self.frames.len() as u32;
         let stem = format!("{frame:05}");
         let snapshot = sim.snapshot();
+        // The bodies once there is one (a replay may drop the first in mid-run), from then on
+        // at every frame.
+        let bodies = sim.rigid_bodies();
+        let with_bodies = !bodies.is_empty() || self.bodies_csv.is_some();
         // One picture for the PNG and the videos' frame.
         let mut picture = if self.pictures {
             Some(dfsph_io::render_frame(
@@ -404,6 +442,15 @@ impl FrameWriter {
                 Format::Vtk => {
                     dfsph_io::write_vtu(&path, &snapshot)?;
                     self.write_walls(sim, &stem, manifest)?;
+                    if with_bodies {
+                        if self.body_files.is_empty() {
+                            manifest.record(&format!("{PARTICLES_DIR}/bodies.pvd"))?;
+                        }
+                        let name = format!("bodies_{stem}.vtu");
+                        manifest.record(&format!("{PARTICLES_DIR}/{name}"))?;
+                        dfsph_io::write_bodies_vtu(self.dir.join(&name), &bodies)?;
+                        self.body_files.push((snapshot.time, name));
+                    }
                 }
                 Format::Png => {
                     let pixmap = picture.as_ref().expect("drawn for png");
@@ -429,6 +476,19 @@ impl FrameWriter {
             Some(first) => format!("{stem}.{}", first.extension()),
             None => String::new(),
         };
+        if with_bodies {
+            if self.bodies_csv.is_none() {
+                manifest.record(BODIES_CSV)?;
+                let mut csv = dfsph_io::AppendFile::create(self.out.join(BODIES_CSV))?;
+                csv.append(dfsph_io::BODIES_HEADER)?;
+                self.bodies_csv = Some(csv);
+            }
+            let csv = self.bodies_csv.as_mut().expect("created above");
+            // A frame's rows in one write; none when every body is gone (a reset).
+            if !bodies.is_empty() {
+                csv.append(&dfsph_io::bodies_csv_rows(frame, snapshot.time, &bodies))?;
+            }
+        }
         let record = FrameRecord {
             frame,
             time: snapshot.time,
@@ -490,6 +550,9 @@ impl FrameWriter {
             .map(|(f, file)| (f.time, file.clone()))
             .collect();
         dfsph_io::write_pvd(self.dir.join("walls.pvd"), &walls)?;
+        if !self.body_files.is_empty() {
+            dfsph_io::write_pvd(self.dir.join("bodies.pvd"), &self.body_files)?;
+        }
         self.pvd_frames = self.frames.len();
         Ok(())
     }
@@ -497,6 +560,9 @@ impl FrameWriter {
     /// Bring `particles.pvd` up to date, make `index.csv` durable and complete the videos.
     pub fn finish(mut self) -> Result<()> {
         self.write_pvd()?;
+        if let Some(csv) = self.bodies_csv.take() {
+            csv.finish()?;
+        }
         self.index.finish()?;
         if let Some(gif) = self.gif.take() {
             gif.finish()?;
@@ -572,6 +638,55 @@ mod tests {
             last.contains(&format!("NumberOfPoints=\"{boundary}\"")),
             "{boundary}"
         );
+    }
+
+    #[test]
+    fn bodies_files_start_with_the_first_body() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(dir.path().join(PARTICLES_DIR)).unwrap();
+        let mut manifest = Manifest::create(dir.path()).unwrap();
+        let mut scene = dfsph::scene::builtin("dam-break").unwrap();
+        scene.particle_radius = 0.05;
+        let mut sim = Simulation::new(&scene).unwrap();
+        let mut frames =
+            FrameWriter::create(dir.path(), &[Format::Vtk], &scene, 320, 0.05, &mut manifest)
+                .unwrap();
+        frames.write(&sim, &mut manifest).unwrap();
+        sim.step();
+        frames.write(&sim, &mut manifest).unwrap();
+        // No body yet: no bodies files.
+        assert!(!dir.path().join(BODIES_CSV).exists());
+        assert!(!dir.path().join("particles/bodies_00001.vtu").exists());
+        // A body dropped in (as a replayed recording does): from this frame on.
+        let body = dfsph::rigid::BodySpec::new_box([0.4, 0.4], 500.0, [2.5, 1.5]);
+        assert_eq!(sim.apply(&dfsph::Action::AddBody { body }).rejected, None);
+        sim.step();
+        frames.write(&sim, &mut manifest).unwrap();
+        sim.step();
+        frames.write(&sim, &mut manifest).unwrap();
+        frames.finish().unwrap();
+
+        let csv = std::fs::read_to_string(dir.path().join(BODIES_CSV)).unwrap();
+        let frames: Vec<&str> = csv.lines().map(|l| l.split(',').next().unwrap()).collect();
+        assert_eq!(frames, ["frame", "2", "3"], "{csv}");
+        let pvd = std::fs::read_to_string(dir.path().join("particles/bodies.pvd")).unwrap();
+        let files: Vec<&str> = pvd
+            .lines()
+            .filter_map(|l| l.split("file=\"").nth(1)?.split('"').next())
+            .collect();
+        assert_eq!(files, ["bodies_00002.vtu", "bodies_00003.vtu"]);
+        assert!(!dir.path().join("particles/bodies_00001.vtu").exists());
+        let listed = std::fs::read_to_string(dir.path().join(MANIFEST)).unwrap();
+        for name in [
+            BODIES_CSV,
+            "particles/bodies.pvd",
+            "particles/bodies_00002.vtu",
+            "particles/bodies_00003.vtu",
+        ] {
+            assert!(listed.lines().any(|l| l == name), "{name}: {listed}");
+            assert!(is_our_output(name), "{name}");
+        }
+        assert!(!is_bodies_file("bodies_00003.csv") && !is_our_output("particles/bodies.csv"));
     }
 
     #[test]

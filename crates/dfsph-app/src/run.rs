@@ -38,8 +38,10 @@ pub struct RunOutcome {
     pub frames: usize,
     pub n_fluid: usize,
     pub n_boundary: usize,
-    /// Particles put back into the tank over the run (wall leaks).
+    /// Particles put back into the tank, or out of a rigid body, over the run (wall leaks).
     pub clamped: u64,
+    /// Rigid bodies at the end.
+    pub bodies: usize,
     /// Particles reset after becoming NaN/infinite over the run.
     pub non_finite: u64,
     /// The first step that produced non-finite values, and its time; the run stopped there.
@@ -212,6 +214,7 @@ pub fn execute_with(
         n_fluid: last.n_fluid,
         n_boundary: last.n_boundary,
         clamped: sim.total_clamped(),
+        bodies: sim.rigid_body_count(),
         non_finite: sim.total_non_finite(),
         broke_at,
         interrupted,

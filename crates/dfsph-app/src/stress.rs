@@ -12,6 +12,7 @@ use std::path::PathBuf;
 
 use dfsph::forces::MAX_POINTER_ACCELERATION;
 use dfsph::recording::{End, Header, Recorder};
+use dfsph::rigid::{BodySpec, RigidBodyState};
 use dfsph::{Action, Scene, Simulation, StepStats, Vec2};
 
 use crate::cli::StressArgs;
@@ -22,6 +23,11 @@ use crate::Failure;
 const POUR_SPEED: f32 = 1.0;
 /// The viewer's largest tilt of gravity, degrees.
 const MAX_TILT_DEG: f32 = 45.0;
+
+/// Densities of the bodies stress drops in, kg/m³ (log-uniform): from foam to steel.
+const BODY_DENSITIES: (f64, f64) = (100.0, 8_000.0);
+/// Most bodies stress drops in between resets (the scene's own come on top).
+const MAX_DROPPED_BODIES: usize = 8;
 
 /// `dfsph2d stress`.
 pub fn command(args: StressArgs) -> Result<(), Failure> {
@@ -135,10 +141,15 @@ pub struct StressOutcome {
     pub n_fluid: usize,
     pub poured: usize,
     pub erased: usize,
+    /// Fluid particles removed where a body was dropped in.
+    pub displaced: usize,
     pub max_density_error_pct: f64,
     pub max_speed: f64,
     pub clamped: u64,
     pub non_finite: u64,
+    /// Rigid bodies at the end, and the most fluid particles seen inside one at once.
+    pub bodies: usize,
+    pub max_inside_bodies: usize,
     pub violation: Option<Violation>,
     pub interrupted: bool,
     /// Fingerprint of the final state.
@@ -158,6 +169,10 @@ impl StressOutcome {
         } else {
             String::new()
         };
+        let displaced = match self.displaced {
+            0 => String::new(),
+            n => format!(" −{n} under bodies"),
+        };
         let resets = match self.resets {
             0 => String::new(),
             1 => ", 1 reset".to_string(),
@@ -165,17 +180,19 @@ impl StressOutcome {
         };
         one_line(&format!(
             "stress {scene} seed={} steps={}: {verdict} — {ran}particles {} (+{} poured −{} \
-             erased{resets}), max density error {:.2} % (bound {} %), max speed {:.2} m/s, {} \
-             clamps, {} non-finite, {} actions ({} rejected)",
+             erased{displaced}{resets}), {} bodies, max density error {:.2} % (bound {} %), max speed \
+             {:.2} m/s, {} clamps, {} inside bodies, {} non-finite, {} actions ({} rejected)",
             plan.seed,
             plan.steps,
             self.n_fluid,
             self.poured,
             self.erased,
+            self.bodies,
             self.max_density_error_pct,
             plan.density_bound_pct,
             self.max_speed,
             self.clamped,
+            self.max_inside_bodies,
             self.non_finite,
             self.actions,
             self.rejected,
@@ -216,6 +233,9 @@ pub fn run<W: std::io::Write>(
             if let Action::Reset { .. } = action {
                 out.resets += 1;
                 expected = sim.fluid_count();
+            } else if let Action::AddBody { .. } = action {
+                out.displaced += o.removed;
+                expected = expected.saturating_sub(o.removed);
             } else {
                 out.poured += o.added;
                 out.erased += o.removed;
@@ -223,7 +243,7 @@ pub fn run<W: std::io::Write>(
             }
         }
         if !actions.is_empty() {
-            if let Some(what) = check_state(&sim, expected) {
+            if let Some(what) = check_state(&sim, expected, &mut out) {
                 out.violation = Some(Violation {
                     step: out.steps,
                     what: format!("after {}: {what}", action_names(&actions)),
@@ -256,7 +276,9 @@ pub fn run<W: std::io::Write>(
         if s.max_speed.is_finite() {
             out.max_speed = out.max_speed.max(s.max_speed);
         }
-        let what = check_step(&s, plan.density_bound_pct).or_else(|| check_state(&sim, expected));
+        let bodies = sim.rigid_body_count() > 0;
+        let what = check_step(&s, plan.density_bound_pct, bodies)
+            .or_else(|| check_state(&sim, expected, &mut out));
         if let Some(what) = what {
             out.violation = Some(Violation {
                 step: out.steps,
@@ -266,6 +288,7 @@ pub fn run<W: std::io::Write>(
         }
     }
     out.n_fluid = sim.fluid_count();
+    out.bodies = sim.rigid_body_count();
     let end = End::of(out.steps, &sim);
     out.fingerprint = end.fingerprint.clone();
     if let Some(rec) = recorder {
@@ -289,8 +312,9 @@ fn action_names(actions: &[Action]) -> String {
     names.join(", ")
 }
 
-/// The step's own report: non-finite values, clamps, density error.
-fn check_step(s: &StepStats, density_bound_pct: f64) -> Option<String> {
+/// The step's own report: non-finite values, clamps, density error. `bodies`: the
+/// simulation has rigid bodies (a clamp may then have been out of one).
+fn check_step(s: &StepStats, density_bound_pct: f64, bodies: bool) -> Option<String> {
     if s.non_finite > 0 {
         return Some(format!(
             "{} became non-finite (NaN or infinite) and reset by the solver",
@@ -310,10 +334,17 @@ fn check_step(s: &StepStats, density_bound_pct: f64) -> Option<String> {
         }
     }
     if s.clamped > 0 {
-        return Some(format!(
-            "{} clamped back into the tank (the wall leaked)",
-            particles(s.clamped)
-        ));
+        return Some(if bodies {
+            format!(
+                "{} clamped back into the tank or pushed out of a rigid body (a wall leaked)",
+                particles(s.clamped)
+            )
+        } else {
+            format!(
+                "{} clamped back into the tank (the wall leaked)",
+                particles(s.clamped)
+            )
+        });
     }
     if s.max_density_error_pct > density_bound_pct {
         return Some(format!(
@@ -333,12 +364,14 @@ fn particles(n: u32) -> String {
     }
 }
 
-/// The particles themselves: finite, inside the tank, as many as poured and erased say.
-fn check_state(sim: &Simulation, expected: usize) -> Option<String> {
+/// The particles themselves: finite, inside the tank, as many as poured and erased say, none
+/// inside a rigid body; and the bodies: finite, inside the tank. Notes in `out` the most
+/// particles seen inside the bodies.
+fn check_state(sim: &Simulation, expected: usize, out: &mut StressOutcome) -> Option<String> {
     let n = sim.fluid_count();
     if n != expected {
         return Some(format!(
-            "{n} fluid particles, but initial + poured − erased = {expected}"
+            "{n} fluid particles, but initial + poured − erased − under bodies = {expected}"
         ));
     }
     if n > sim.scene().max_particles {
@@ -366,7 +399,101 @@ fn check_state(sim: &Simulation, expected: usize) -> Option<String> {
             ));
         }
     }
+    let bodies = sim.rigid_bodies();
+    if bodies.is_empty() {
+        return None;
+    }
+    // A body's outline may touch the tank's walls, and rapier lets contacts overlap a hair:
+    // one spacing of slack.
+    let d = sim.spacing();
+    let (lo, hi) = sim.tank_interior();
+    let (lo, hi) = (lo - Vec2::splat(d), hi + Vec2::splat(d));
+    for (k, b) in bodies.iter().enumerate() {
+        let finite = b.position.is_finite()
+            && b.velocity.is_finite()
+            && b.angle.is_finite()
+            && b.angular_velocity.is_finite()
+            && b.outline.iter().all(|p| p.is_finite());
+        if !finite {
+            return Some(format!(
+                "rigid body {k} is not finite: position ({}, {}), angle {}, velocity ({}, {}), \
+                 spin {}",
+                b.position.x, b.position.y, b.angle, b.velocity.x, b.velocity.y, b.angular_velocity
+            ));
+        }
+        if let Some(p) = b
+            .outline
+            .iter()
+            .find(|p| p.cmplt(lo).any() || p.cmpgt(hi).any())
+        {
+            return Some(format!(
+                "rigid body {k} reaches ({:.4}, {:.4}), outside the tank ({:.4}, {:.4})–({:.4}, \
+                 {:.4}) by more than a spacing",
+                p.x, p.y, lo.x, lo.y, hi.x, hi.y
+            ));
+        }
+    }
+    let inside = fluid_inside_bodies(sim.positions(), &bodies, 0.5 * d);
+    out.max_inside_bodies = out.max_inside_bodies.max(inside.len());
+    if let Some(&(i, k, depth)) = inside.first() {
+        let x = sim.positions()[i];
+        return Some(format!(
+            "{} inside a rigid body (more than half a spacing within its outline): particle {} \
+             at ({:.4}, {:.4}) is {:.4} m inside body {k}",
+            particles(inside.len() as u32),
+            sim.ids()[i],
+            x.x,
+            x.y,
+            depth
+        ));
+    }
     None
+}
+
+/// The fluid particles whose centre lies more than `margin` (m) inside a rigid body's
+/// outline, as (index, body, depth in m). Measured on the outlines the simulation reports
+/// (convex, counter-clockwise; a circle as its 48-gon), not with the solver's own
+/// containment, so that it checks it.
+pub fn fluid_inside_bodies(
+    positions: &[Vec2],
+    bodies: &[RigidBodyState],
+    margin: f32,
+) -> Vec<(usize, usize, f32)> {
+    let mut inside = Vec::new();
+    for (k, b) in bodies.iter().enumerate() {
+        let n = b.outline.len();
+        if n < 3 {
+            continue;
+        }
+        let (mut lo, mut hi) = (b.outline[0], b.outline[0]);
+        for p in &b.outline {
+            (lo, hi) = (lo.min(*p), hi.max(*p));
+        }
+        let (lo, hi) = (lo + Vec2::splat(margin), hi - Vec2::splat(margin));
+        for (i, x) in positions.iter().enumerate() {
+            if x.cmplt(lo).any() || x.cmpgt(hi).any() {
+                continue;
+            }
+            // Depth inside a convex counter-clockwise polygon: the least distance to the left
+            // of its edges.
+            let depth = (0..n)
+                .map(|j| {
+                    let (a, c) = (b.outline[j], b.outline[(j + 1) % n]);
+                    let e = c - a;
+                    let len = e.length();
+                    if len == 0.0 {
+                        f32::INFINITY
+                    } else {
+                        e.perp_dot(*x - a) / len
+                    }
+                })
+                .fold(f32::INFINITY, f32::min);
+            if depth > margin {
+                inside.push((i, k, depth));
+            }
+        }
+    }
+    inside
 }
 
 /// SplitMix64: tiny, fast, and the same sequence on every platform and version.
@@ -431,6 +558,16 @@ struct Generator {
     shaking: bool,
     pointer: Option<Held>,
     pour: Option<Held>,
+    /// The bodies' actions draw from a stream of their own, so that they leave every other
+    /// action of a seed as it was before stress dropped bodies in.
+    body_rng: Rng,
+    /// The first bodies are due: at the start and after a reset.
+    bodies_due: bool,
+    /// The bodies dropped in since the start or the last reset: where (centre, m) and how far
+    /// they reach from it (m).
+    dropped: Vec<(Vec2, f32)>,
+    /// A body is held by the pointer (if the grab found one) until this step.
+    grab_until: Option<u64>,
 }
 
 impl Generator {
@@ -449,7 +586,115 @@ impl Generator {
             shaking: false,
             pointer: None,
             pour: None,
+            body_rng: Rng(seed ^ 0xb0d1_e5b0_d1e5_0000),
+            bodies_due: true,
+            dropped: Vec::new(),
+            grab_until: None,
         }
+    }
+
+    /// The rigid bodies' actions after `step` steps: first two to four bodies on the floor
+    /// and in the air downstream of the water (boxes and circles of 100–8,000 kg/m³, from
+    /// three spacings to 15 % of the tank across), which the surge carries into the far wall;
+    /// then now and then another dropped from the upper half, and a body grabbed where one
+    /// was dropped, dragged about anywhere the pointer reaches, and let go.
+    fn body_actions(&mut self, step: u64, out: &mut Vec<Action>) {
+        if self.bodies_due {
+            self.bodies_due = false;
+            for _ in 0..2 + self.body_rng.below(3) {
+                if let Some(body) = self.body(true) {
+                    out.push(Action::AddBody { body });
+                }
+            }
+            return;
+        }
+        match self.grab_until {
+            Some(until) if step >= until => {
+                self.grab_until = None;
+                out.push(Action::ReleaseBody);
+            }
+            Some(_) if step.is_multiple_of(4) => {
+                let target = Vec2::new(
+                    self.body_rng.rangef(self.reach_lo.x, self.reach_hi.x),
+                    self.body_rng.rangef(self.reach_lo.y, self.reach_hi.y),
+                );
+                out.push(Action::DragBody { target });
+            }
+            Some(_) => {}
+            None if !self.dropped.is_empty() && self.body_rng.chance(0.005) => {
+                let k = self.body_rng.below(self.dropped.len() as u64) as usize;
+                let (centre, reach) = self.dropped[k];
+                let at = centre
+                    + 0.5
+                        * reach
+                        * Vec2::new(
+                            self.body_rng.rangef(-1.0, 1.0),
+                            self.body_rng.rangef(-1.0, 1.0),
+                        );
+                self.grab_until = Some(step + 20 + self.body_rng.below(150));
+                out.push(Action::GrabBody { at });
+            }
+            None => {}
+        }
+        if self.dropped.len() < MAX_DROPPED_BODIES && self.body_rng.chance(0.002) {
+            if let Some(body) = self.body(false) {
+                out.push(Action::AddBody { body });
+            }
+        }
+    }
+
+    /// A box or a circle clear of the bodies dropped so far: `downstream`, in the part of the
+    /// tank right of its first 35 %, on the floor with odds 3 in 5; otherwise anywhere across
+    /// the upper half. None when no place was found in a few tries.
+    fn body(&mut self, downstream: bool) -> Option<BodySpec> {
+        let size = self.hi - self.lo;
+        let smallest = (3.15 * self.d as f64).max(0.05);
+        let largest = (0.15 * size.min_element() as f64).max(1.5 * smallest);
+        let rng = &mut self.body_rng;
+        let density = rng.log_range(BODY_DENSITIES.0, BODY_DENSITIES.1);
+        let mut spec = if rng.chance(0.4) {
+            BodySpec::new_circle(0.5 * rng.range(smallest, largest), density, [0.0, 0.0])
+        } else {
+            let size = [rng.range(smallest, largest), rng.range(smallest, largest)];
+            let mut b = BodySpec::new_box(size, density, [0.0, 0.0]);
+            if rng.chance(0.3) {
+                b.angle = rng.range(-std::f64::consts::PI, std::f64::consts::PI);
+            }
+            b
+        };
+        let half = spec.half_extent();
+        let reach = half[0].hypot(half[1]) as f32;
+        let gap = 0.01f64.max(self.d as f64);
+        let (lo, hi) = (self.lo.as_dvec2(), self.hi.as_dvec2());
+        for _ in 0..8 {
+            let x_from = if downstream {
+                lo.x + 0.35 * (hi.x - lo.x)
+            } else {
+                lo.x
+            };
+            let (x0, x1) = (x_from + half[0] + gap, hi.x - half[0] - gap);
+            let on_floor = downstream && rng.chance(0.6);
+            let (y0, y1) = if on_floor {
+                (lo.y + half[1] + 0.25 * gap, lo.y + half[1] + 0.25 * gap)
+            } else {
+                (0.5 * (lo.y + hi.y) + half[1], hi.y - half[1] - gap)
+            };
+            if x0 > x1 || y0 > y1 {
+                return None;
+            }
+            let at = [rng.range(x0, x1), rng.range(y0, y1)];
+            let centre = Vec2::new(at[0] as f32, at[1] as f32);
+            let clear = self
+                .dropped
+                .iter()
+                .all(|(c, r)| (*c - centre).length() > r + reach + self.d);
+            if clear {
+                spec.position = at;
+                self.dropped.push((centre, reach));
+                return Some(spec);
+            }
+        }
+        None
     }
 
     /// Anywhere the viewer's pointer could be: the tank and a margin around it.
@@ -482,6 +727,8 @@ impl Generator {
     /// The actions applied after `step` steps. `scene` is the simulation's current scene
     /// (parameter changes start from its values; they change only through these actions).
     fn actions(&mut self, step: u64, scene: &Scene, out: &mut Vec<Action>) {
+        self.body_actions(step, out);
+
         // Shaking: hold left or right at full strength, switch or let go.
         if step >= self.shake_until && self.rng.chance(if self.shaking { 0.05 } else { 0.01 }) {
             let direction = match self.rng.below(5) {
@@ -608,6 +855,9 @@ impl Generator {
             self.pointer = None;
             self.pour = None;
             self.shaking = false;
+            self.bodies_due = true;
+            self.dropped.clear();
+            self.grab_until = None;
             out.push(Action::Reset { scene: None });
         }
     }
@@ -663,9 +913,15 @@ mod tests {
             "set_viscosity",
             "set_solver",
             "set_time_step",
+            "add_body",
+            "grab_body",
+            "drag_body",
+            "release_body",
         ] {
             assert!(kinds.contains(kind), "{kind} never generated: {kinds:?}");
         }
+        // The first actions drop bodies in, downstream of the water.
+        assert!(matches!(a[0], (0, Action::AddBody { .. })), "{:?}", a[0]);
         // Every generated parameter change is one the simulation accepts.
         let mut sim = Simulation::new(&scene).unwrap();
         for (_, a) in &a {
@@ -675,7 +931,44 @@ mod tests {
             ) {
                 assert_eq!(sim.apply(a).rejected, None, "{a:?}");
             }
+            // Every body fits the scene, with its densities within stress's range.
+            if let Action::AddBody { body } = a {
+                body.validate("body", scene.spacing(), &scene.tank).unwrap();
+                let rho = body.mean_density();
+                assert!(
+                    (BODY_DENSITIES.0..=BODY_DENSITIES.1).contains(&rho),
+                    "{rho}"
+                );
+            }
         }
+    }
+
+    #[test]
+    fn fluid_inside_a_body_is_found_by_its_outline() {
+        let square = RigidBodyState {
+            position: Vec2::new(1.0, 1.0),
+            angle: 0.0,
+            velocity: Vec2::ZERO,
+            angular_velocity: 0.0,
+            mass: 20.0,
+            spec: BodySpec::new_box([0.2, 0.2], 500.0, [1.0, 1.0]),
+            outline: vec![
+                Vec2::new(0.9, 0.9),
+                Vec2::new(1.1, 0.9),
+                Vec2::new(1.1, 1.1),
+                Vec2::new(0.9, 1.1),
+            ],
+        };
+        let positions = [
+            Vec2::new(1.0, 1.0),   // the centre: 0.1 m deep
+            Vec2::new(1.08, 1.0),  // 0.02 m deep: within the margin
+            Vec2::new(0.95, 1.04), // 0.05 m deep
+            Vec2::new(1.2, 1.0),   // outside
+        ];
+        let inside = fluid_inside_bodies(&positions, std::slice::from_ref(&square), 0.025);
+        let found: Vec<usize> = inside.iter().map(|(i, _, _)| *i).collect();
+        assert_eq!(found, [0, 2]);
+        assert!((inside[0].2 - 0.1).abs() < 1e-6);
     }
 
     #[test]
@@ -689,24 +982,30 @@ mod tests {
         let scene = coarse();
         let mut sim = Simulation::new(&scene).unwrap();
         let n = sim.fluid_count();
-        assert_eq!(check_state(&sim, n), None);
-        assert!(check_state(&sim, n + 1).unwrap().contains("poured"));
+        let mut out = StressOutcome::default();
+        assert_eq!(check_state(&sim, n, &mut out), None);
+        assert!(check_state(&sim, n + 1, &mut out)
+            .unwrap()
+            .contains("poured"));
         let s = *sim.step();
-        assert_eq!(check_step(&s, 5.0), None);
+        assert_eq!(check_step(&s, 5.0, false), None);
         let bad = StepStats { clamped: 2, ..s };
-        assert!(check_step(&bad, 5.0).unwrap().contains("clamped"));
+        assert!(check_step(&bad, 5.0, false).unwrap().contains("clamped"));
+        assert!(check_step(&bad, 5.0, true)
+            .unwrap()
+            .contains("out of a rigid body"));
         let bad = StepStats { non_finite: 1, ..s };
-        assert!(check_step(&bad, 5.0).unwrap().contains("non-finite"));
+        assert!(check_step(&bad, 5.0, false).unwrap().contains("non-finite"));
         let bad = StepStats {
             max_speed: f64::NAN,
             ..s
         };
-        assert!(check_step(&bad, 5.0).unwrap().contains("max_speed"));
+        assert!(check_step(&bad, 5.0, false).unwrap().contains("max_speed"));
         let bad = StepStats {
             max_density_error_pct: 7.5,
             ..s
         };
-        assert!(check_step(&bad, 5.0).unwrap().contains("7.50 %"));
+        assert!(check_step(&bad, 5.0, false).unwrap().contains("7.50 %"));
     }
 
     #[test]

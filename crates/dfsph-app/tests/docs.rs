@@ -72,6 +72,21 @@ fn every_key_is_documented() {
                 positions: vec![[2.5, 1.5]],
             },
         ],
+        bodies: vec![
+            scene::BodySpec::new_box([0.4, 0.2], 500.0, [2.0, 1.0]),
+            scene::BodySpec {
+                joint: Some(scene::BodyJoint::Hinge { anchor: [1.0, 1.0] }),
+                ..scene::BodySpec::new_circle(0.1, 250.0, [1.0, 1.5])
+            },
+            scene::BodySpec {
+                shape: scene::BodyShape::Polygon,
+                points: Some(vec![[-0.1, -0.1], [0.1, -0.1], [0.0, 0.1]]),
+                size: None,
+                density: None,
+                mass: Some(10.0),
+                ..scene::BodySpec::new_box([0.0, 0.0], 0.0, [3.0, 1.0])
+            },
+        ],
         particles: scene::ParticleList {
             positions: vec![[3.5, 2.5]],
             velocities: vec![[1.0, 0.0]],

@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use anyhow::Result;
+use dfsph::rigid::RigidBodyState;
 use dfsph::Snapshot;
 
 use crate::atomic::write_atomic;
@@ -15,6 +16,29 @@ pub const SNAPSHOT_HEADER: &str = "x,y,vx,vy,density,pressure";
 
 /// Header of the frame index CSV.
 pub const INDEX_HEADER: &str = "frame,time,file";
+
+/// Header of the rigid bodies' CSV (`bodies.csv`): one row per body per snapshot.
+pub const BODIES_HEADER: &str = "frame,time,body,x,y,angle,vx,vy,omega";
+
+/// The rows of `bodies.csv` for one snapshot (`frame` at `time`, s), one per body in the
+/// simulation's order (the scene's, then those added), joined by newlines without a final
+/// one, so that [`crate::AppendFile::append`] puts the whole frame on disk in one write:
+/// `frame,time,body,x,y,angle,vx,vy,omega` with the body's index, the position of its centre
+/// (m), its angle (rad, counter-clockwise), the velocity of its centre (m/s) and its spin
+/// (rad/s, counter-clockwise). Empty without bodies.
+pub fn bodies_csv_rows(frame: u32, time: f64, bodies: &[RigidBodyState]) -> String {
+    let rows: Vec<String> = bodies
+        .iter()
+        .enumerate()
+        .map(|(k, b)| {
+            format!(
+                "{frame},{time},{k},{},{},{},{},{},{}",
+                b.position.x, b.position.y, b.angle, b.velocity.x, b.velocity.y, b.angular_velocity
+            )
+        })
+        .collect();
+    rows.join("\n")
+}
 
 /// Write a snapshot as CSV: [`SNAPSHOT_HEADER`], then one row per fluid particle in the
 /// snapshot's order (sorted by id): position (m), velocity (m/s), density (kg/m³),
@@ -92,6 +116,30 @@ mod tests {
         // Values round-trip exactly to f32.
         let x: f32 = lines[2].split(',').next().unwrap().parse().unwrap();
         assert_eq!(x, 0.03f32);
+    }
+
+    fn body(x: f32, angle: f32) -> RigidBodyState {
+        let spec = dfsph::rigid::BodySpec::new_box([0.4, 0.2], 500.0, [x as f64, 0.8]);
+        RigidBodyState {
+            position: Vec2::new(x, 0.8),
+            angle,
+            velocity: Vec2::new(0.5, -1.25),
+            angular_velocity: -0.125,
+            mass: 40.0,
+            spec,
+            outline: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn bodies_rows_are_one_per_body_with_exact_values() {
+        let rows = bodies_csv_rows(3, 0.15, &[body(1.0, 0.0), body(2.5, 0.1)]);
+        assert_eq!(
+            rows,
+            "3,0.15,0,1,0.8,0,0.5,-1.25,-0.125\n3,0.15,1,2.5,0.8,0.1,0.5,-1.25,-0.125"
+        );
+        assert_eq!(BODIES_HEADER.split(',').count(), 9);
+        assert_eq!(bodies_csv_rows(0, 0.0, &[]), "");
     }
 
     #[test]

@@ -4,10 +4,12 @@
 //! ([`dfsph::Snapshot`], [`dfsph::StepStats`]):
 //!
 //! - [`csv`]: particle snapshots (`x,y,vx,vy,density,pressure`) and the frame index
-//!   (`frame,time,file`);
+//!   (`frame,time,file`), and the rigid bodies' poses and velocities
+//!   (`frame,time,body,x,y,angle,vx,vy,omega`);
 //! - [`stats`]: one row of [`dfsph::StepStats`] per step;
 //! - [`vtk`]: VTK XML UnstructuredGrid (`.vtu`) snapshots that ParaView opens, and a `.pvd`
-//!   collection that gives ParaView the frame times;
+//!   collection that gives ParaView the frame times; the rigid bodies' outlines as polygon
+//!   cells;
 //! - [`render`]: a CPU rasteriser (tiny-skia) that draws a frame to PNG, fluid coloured by
 //!   speed with a [`colormap`] and a legend;
 //! - [`video`]: those frames, stamped with their simulated time, as an animated GIF (pure
@@ -31,9 +33,9 @@ pub mod vtk;
 pub use append::AppendFile;
 pub use atomic::{write_atomic, AtomicFile};
 pub use csv::{
-    frame_index_row, write_frame_index, write_snapshot_csv, FrameRecord, INDEX_HEADER,
-    SNAPSHOT_HEADER,
+    bodies_csv_rows, frame_index_row, write_frame_index, write_snapshot_csv, FrameRecord,
+    BODIES_HEADER, INDEX_HEADER, SNAPSHOT_HEADER,
 };
 pub use render::{render_frame, write_png, RenderGeometry, RenderOptions};
 pub use stats::{StatsCsvWriter, STATS_HEADER};
-pub use vtk::{write_pvd, write_vtu, write_walls_vtu};
+pub use vtk::{write_bodies_vtu, write_pvd, write_vtu, write_walls_vtu};

@@ -1,5 +1,7 @@
 //! VTK XML output for ParaView: one UnstructuredGrid (`.vtu`) per snapshot, and a `.pvd`
-//! collection that lists the snapshots with their simulated times.
+//! collection that lists the snapshots with their simulated times. The walls are a `.vtu` of
+//! points as the particles are; the rigid bodies a `.vtu` of polygons, one cell per body
+//! ([`write_bodies_vtu`]).
 //!
 //! Each particle is a point (z = 0) with a vertex cell, so ParaView shows it directly and
 //! filters such as *Point Gaussian* work. Point data: `velocity` (3 components, m/s, z = 0),
@@ -11,12 +13,16 @@ use std::io::{self, Write};
 use std::path::Path;
 
 use anyhow::Result;
+use dfsph::rigid::RigidBodyState;
 use dfsph::{Snapshot, Vec2};
 
 use crate::atomic::write_atomic;
 
 /// VTK cell type of a single point.
 const VTK_VERTEX: u8 = 1;
+
+/// VTK cell type of a polygon (its points in order around it).
+const VTK_POLYGON: u8 = 7;
 
 /// Write a snapshot as a VTK XML UnstructuredGrid (`.vtu`).
 pub fn write_vtu(path: impl AsRef<Path>, snapshot: &Snapshot) -> Result<()> {
@@ -96,26 +102,60 @@ fn write_points(
     w: &mut dyn Write,
     positions: &[Vec2],
     defaults: &str,
-    arrays: &[(&str, &str, usize, Vec<u8>)],
+    arrays: &[DataArray],
 ) -> io::Result<()> {
     let n = positions.len();
-    let points: Vec<f32> = positions.iter().flat_map(|p| [p.x, p.y, 0.0]).collect();
-    let connectivity: Vec<i64> = (0..n as i64).collect();
-    let offsets: Vec<i64> = (1..=n as i64).collect();
-    let types: Vec<u8> = vec![VTK_VERTEX; n];
+    let cells = Cells {
+        connectivity: (0..n as i64).collect(),
+        offsets: (1..=n as i64).collect(),
+        types: vec![VTK_VERTEX; n],
+    };
+    write_grid(w, positions, &cells, (defaults, arrays), ("", &[]))
+}
 
+/// One named data array: VTK type, name, components, little-endian bytes.
+type DataArray<'a> = (&'a str, &'a str, usize, Vec<u8>);
+
+/// The cells of an UnstructuredGrid: the points of each in one list, where each ends in it,
+/// and each one's VTK type.
+struct Cells {
+    connectivity: Vec<i64>,
+    offsets: Vec<i64>,
+    types: Vec<u8>,
+}
+
+/// A `.vtu` of `positions` (z = 0) and `cells`, with point data and cell data (each the
+/// attribute naming its active scalars and vectors, and the arrays).
+fn write_grid(
+    w: &mut dyn Write,
+    positions: &[Vec2],
+    cells: &Cells,
+    point_data: (&str, &[DataArray]),
+    cell_data: (&str, &[DataArray]),
+) -> io::Result<()> {
+    let points: Vec<f32> = positions.iter().flat_map(|p| [p.x, p.y, 0.0]).collect();
     writeln!(w, r#"<?xml version="1.0"?>"#)?;
     writeln!(
         w,
         r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#
     )?;
     writeln!(w, "  <UnstructuredGrid>")?;
-    writeln!(w, r#"    <Piece NumberOfPoints="{n}" NumberOfCells="{n}">"#)?;
-    writeln!(w, "      <PointData {defaults}>")?;
-    for (ty, name, components, bytes) in arrays {
-        data_array(w, ty, Some(name), *components, bytes)?;
+    writeln!(
+        w,
+        r#"    <Piece NumberOfPoints="{}" NumberOfCells="{}">"#,
+        positions.len(),
+        cells.types.len()
+    )?;
+    for (tag, (defaults, arrays)) in [("PointData", point_data), ("CellData", cell_data)] {
+        if arrays.is_empty() {
+            continue;
+        }
+        writeln!(w, "      <{tag} {defaults}>")?;
+        for (ty, name, components, bytes) in arrays {
+            data_array(w, ty, Some(name), *components, bytes)?;
+        }
+        writeln!(w, "      </{tag}>")?;
     }
-    writeln!(w, "      </PointData>")?;
     writeln!(w, "      <Points>")?;
     data_array(w, "Float32", None, 3, &bytes_f32(&points))?;
     writeln!(w, "      </Points>")?;
@@ -125,14 +165,63 @@ fn write_points(
         "Int64",
         Some("connectivity"),
         1,
-        &bytes_i64(&connectivity),
+        &bytes_i64(&cells.connectivity),
     )?;
-    data_array(w, "Int64", Some("offsets"), 1, &bytes_i64(&offsets))?;
-    data_array(w, "UInt8", Some("types"), 1, &types)?;
+    data_array(w, "Int64", Some("offsets"), 1, &bytes_i64(&cells.offsets))?;
+    data_array(w, "UInt8", Some("types"), 1, &cells.types)?;
     writeln!(w, "      </Cells>")?;
     writeln!(w, "    </Piece>")?;
     writeln!(w, "  </UnstructuredGrid>")?;
     writeln!(w, "</VTKFile>")
+}
+
+/// Write the rigid bodies as a `.vtu` of polygons: each body's outline in the tank's frame
+/// (counter-clockwise; a circle as its 48-gon), z = 0, is one polygon cell, in the
+/// simulation's order, with cell data `body` (the body's index, as in `bodies.csv`),
+/// `velocity` (of its centre, 3 components, m/s, z = 0), `angle` (rad, counter-clockwise),
+/// `omega` (spin, rad/s) and `mass` (kg per metre of depth). No bodies: an empty grid.
+pub fn write_bodies_vtu(path: impl AsRef<Path>, bodies: &[RigidBodyState]) -> Result<()> {
+    write_atomic(path, |w| write_bodies_vtu_to(w, bodies))
+}
+
+/// The `.vtu` document of [`write_bodies_vtu`], written to `w`.
+pub fn write_bodies_vtu_to(w: &mut dyn Write, bodies: &[RigidBodyState]) -> io::Result<()> {
+    let positions: Vec<Vec2> = bodies.iter().flat_map(|b| b.outline.clone()).collect();
+    let mut offsets = Vec::with_capacity(bodies.len());
+    let mut end = 0i64;
+    for b in bodies {
+        end += b.outline.len() as i64;
+        offsets.push(end);
+    }
+    let cells = Cells {
+        connectivity: (0..positions.len() as i64).collect(),
+        offsets,
+        types: vec![VTK_POLYGON; bodies.len()],
+    };
+    let body: Vec<u32> = (0..bodies.len() as u32).collect();
+    let velocity: Vec<f32> = bodies
+        .iter()
+        .flat_map(|b| [b.velocity.x, b.velocity.y, 0.0])
+        .collect();
+    let angle: Vec<f32> = bodies.iter().map(|b| b.angle).collect();
+    let omega: Vec<f32> = bodies.iter().map(|b| b.angular_velocity).collect();
+    let mass: Vec<f32> = bodies.iter().map(|b| b.mass).collect();
+    write_grid(
+        w,
+        &positions,
+        &cells,
+        ("", &[]),
+        (
+            r#"Scalars="body" Vectors="velocity""#,
+            &[
+                ("UInt32", "body", 1, bytes_u32(&body)),
+                ("Float32", "velocity", 3, bytes_f32(&velocity)),
+                ("Float32", "angle", 1, bytes_f32(&angle)),
+                ("Float32", "omega", 1, bytes_f32(&omega)),
+                ("Float32", "mass", 1, bytes_f32(&mass)),
+            ],
+        ),
+    )
 }
 
 /// One inline binary `<DataArray>`.
@@ -358,6 +447,94 @@ mod tests {
         };
         assert_eq!(array("body").cast_into::<u32>().unwrap(), [0, 2, 2]);
         assert_eq!(f32s(&array("volume")), [1e-4, 2e-4, 3e-4]);
+    }
+
+    #[test]
+    fn bodies_read_back_with_vtkio_as_polygons_with_their_cell_data() {
+        use dfsph::rigid::BodySpec;
+        let body =
+            |outline: Vec<Vec2>, v: Vec2, angle: f32, omega: f32, mass: f32| RigidBodyState {
+                position: outline.iter().copied().sum::<Vec2>() / outline.len() as f32,
+                angle,
+                velocity: v,
+                angular_velocity: omega,
+                mass,
+                spec: BodySpec::new_box([0.2, 0.2], 500.0, [1.0, 1.0]),
+                outline,
+            };
+        let square = vec![
+            Vec2::new(0.9, 0.9),
+            Vec2::new(1.1, 0.9),
+            Vec2::new(1.1, 1.1),
+            Vec2::new(0.9, 1.1),
+        ];
+        let triangle = vec![
+            Vec2::new(2.0, 0.5),
+            Vec2::new(2.3, 0.5),
+            Vec2::new(2.1, 0.8),
+        ];
+        let bodies = [
+            body(square, Vec2::new(0.5, -1.0), 0.25, 2.0, 20.0),
+            body(triangle, Vec2::new(-0.5, 0.0), -1.0, 0.5, 7.5),
+        ];
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bodies_00000.vtu");
+        write_bodies_vtu(&path, &bodies).unwrap();
+        let vtk = vtkio::Vtk::import(&path).expect("vtkio reads the .vtu");
+        let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+            panic!("expected an UnstructuredGrid");
+        };
+        let Piece::Inline(piece) = &pieces[0] else {
+            panic!("expected an inline piece");
+        };
+        assert_eq!(piece.num_points(), 7);
+        assert_eq!(f32s(&piece.points)[3..6], [1.1, 0.9, 0.0]);
+        assert_eq!(f32s(&piece.points)[18..21], [2.1, 0.8, 0.0]);
+        match &piece.cells.cell_verts {
+            VertexNumbers::XML {
+                connectivity,
+                offsets,
+            } => {
+                assert_eq!(connectivity, &(0..7).collect::<Vec<u64>>());
+                assert_eq!(offsets, &[4, 7]);
+            }
+            other => panic!("unexpected cells {other:?}"),
+        }
+        assert_eq!(
+            piece.cells.types,
+            [
+                vtkio::model::CellType::Polygon,
+                vtkio::model::CellType::Polygon
+            ]
+        );
+        assert!(piece.data.point.is_empty());
+        let array = |name: &str| {
+            piece
+                .data
+                .cell
+                .iter()
+                .find_map(|a| match a {
+                    Attribute::DataArray(a) if a.name == name => Some(a.data.clone()),
+                    _ => None,
+                })
+                .unwrap_or_else(|| panic!("no {name}"))
+        };
+        assert_eq!(array("body").cast_into::<u32>().unwrap(), [0, 1]);
+        assert_eq!(f32s(&array("velocity")), [0.5, -1.0, 0.0, -0.5, 0.0, 0.0]);
+        assert_eq!(f32s(&array("angle")), [0.25, -1.0]);
+        assert_eq!(f32s(&array("omega")), [2.0, 0.5]);
+        assert_eq!(f32s(&array("mass")), [20.0, 7.5]);
+
+        // No bodies: an empty grid that still reads.
+        write_bodies_vtu(&path, &[]).unwrap();
+        let vtk = vtkio::Vtk::import(&path).expect("an empty grid reads");
+        let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+            panic!("expected an UnstructuredGrid");
+        };
+        let Piece::Inline(piece) = &pieces[0] else {
+            panic!("expected an inline piece");
+        };
+        assert_eq!(piece.num_points(), 0);
     }
 
     #[test]

@@ -1225,6 +1225,24 @@ pub const BUILTIN_SCENES: &[BuiltinScene] = &[
             ..Scene::default()
         },
     },
+    BuiltinScene {
+        name: "floating",
+        description: "a dam break sweeping floating boxes and circles (300-700 kg/m3) and a \
+                      sinking one (2,000 kg/m3) into the far wall",
+        // Resting on the dry floor downstream, a hair above it: the surge lifts the light ones
+        // and carries them into the right wall, and pushes the heavy one along the bottom.
+        // Every body is 0.3 m across or more, so the scene holds at particle radii up to 5 cm
+        // (a body must be three spacings across).
+        build: || Scene {
+            bodies: vec![
+                BodySpec::new_box([0.4, 0.3], 300.0, [1.7, 0.16]),
+                BodySpec::new_circle(0.15, 500.0, [2.4, 0.16]),
+                BodySpec::new_box([0.3, 0.3], 700.0, [3.0, 0.16]),
+                BodySpec::new_circle(0.15, 2000.0, [3.6, 0.16]),
+            ],
+            ..Scene::default()
+        },
+    },
 ];
 
 /// Look up a built-in scene by name.
