@@ -281,9 +281,13 @@ impl Simulation {
         let clear = 0.9 * d;
         let fluid = &self.fluid.position;
         let walls = &self.boundary.position;
+        // A rigid body's particles only line its outline: its inside is kept clear too.
+        let bodies = self.rigid.as_ref();
         sites.retain(|&p| {
             let near = |q: &Vec2| (*q - p).length_squared() < clear * clear;
-            !fluid.par_iter().any(near) && !walls.par_iter().any(near)
+            !fluid.par_iter().any(near)
+                && !walls.par_iter().any(near)
+                && !bodies.is_some_and(|r| r.covers(p, d))
         });
         sites.truncate(budget);
         for &p in &sites {

@@ -350,3 +350,28 @@ fn a_shaken_tank_carries_its_floating_bodies_along() {
     assert!(body.position != start, "the water moved the box");
     assert_eq!(sim.total_clamped(), 0);
 }
+
+#[test]
+fn water_poured_onto_a_body_does_not_fill_its_inside() {
+    let mut sim = Simulation::new(&pool(BodySpec::new_box([0.3, 0.2], 500.0, [0.6, 0.6]))).unwrap();
+    let added = sim
+        .apply(&Action::Emit {
+            at: Vec2::new(0.6, 0.6),
+            radius: 0.25,
+            velocity: Vec2::ZERO,
+        })
+        .added;
+    assert!(added > 100, "water poured round the box: {added}");
+    let body = &sim.rigid_bodies()[0];
+    let inside = sim
+        .positions()
+        .iter()
+        .filter(|p| {
+            (**p - body.position)
+                .abs()
+                .cmplt(Vec2::new(0.15, 0.1))
+                .all()
+        })
+        .count();
+    assert_eq!(inside, 0);
+}
