@@ -320,6 +320,7 @@ impl Simulation {
             ..Default::default()
         });
         self.drawn_walls.push(polyline.to_vec());
+        self.walls_moved_for_bodies = true;
         let mut samples = BoundarySamples::default();
         samples.add_polyline(polyline, self.spacing, body);
         let added = samples.positions.len();
@@ -386,6 +387,7 @@ impl Simulation {
         let walls = self.boundary.retain(&keep);
         if walls > 0 {
             self.boundary_changed = true;
+            self.walls_moved_for_bodies = true;
         }
         (removed, walls)
     }

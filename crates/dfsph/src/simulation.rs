@@ -137,6 +137,9 @@ pub struct Simulation {
     pub(crate) rigid: Option<RigidBodies>,
     /// Fluid removed and boundary particles added by the last [`crate::Action::AddBody`].
     pub(crate) last_body_change: (usize, usize),
+    /// The obstacles or drawn walls changed since the rigid bodies were last told where they
+    /// are ([`RigidBodies::set_walls`]).
+    pub(crate) walls_moved_for_bodies: bool,
 }
 
 /// Particle data in creation order, for output.
@@ -212,6 +215,7 @@ impl Simulation {
             shake_drive: 0.0,
             rigid: None,
             last_body_change: (0, 0),
+            walls_moved_for_bodies: true,
         };
         let mut samples = BoundarySamples::default();
         if hexagonal {
@@ -855,7 +859,20 @@ impl Simulation {
         let Some(rigid) = &mut self.rigid else {
             return;
         };
-        rigid.step(dt, self.gravity, impulses, self.bodies[0].offset);
+        let tank_offset = self.bodies[0].offset;
+        if self.walls_moved_for_bodies {
+            let bodies = &self.bodies;
+            let walls = self
+                .boundary
+                .position
+                .iter()
+                .zip(&self.boundary.body)
+                .filter(|&(_, &b)| b != 0 && bodies[b as usize].rigid.is_none())
+                .map(|(&p, _)| p - tank_offset);
+            rigid.set_walls(walls, self.spacing);
+            self.walls_moved_for_bodies = false;
+        }
+        rigid.step(dt, self.gravity, impulses, tank_offset);
         self.place_rigid_particles();
     }
 

@@ -375,3 +375,53 @@ fn water_poured_onto_a_body_does_not_fill_its_inside() {
         .count();
     assert_eq!(inside, 0);
 }
+
+#[test]
+fn bodies_land_on_obstacles_and_drawn_walls() {
+    // Shallow water; a block obstacle on the left, a wall drawn across the right half.
+    let mut scene = Scene::from_json(
+        r#"{"particle_radius": 0.01, "tank": {"min": [0, 0], "max": [2.0, 1.0]},
+            "fluid": [{"min": [0, 0], "max": [2.0, 0.1]}],
+            "obstacles": [{"type": "rect", "min": [0.3, 0.0], "max": [0.7, 0.4]}]}"#,
+    )
+    .unwrap();
+    scene
+        .bodies
+        .push(BodySpec::new_box([0.2, 0.1], 2000.0, [0.5, 0.8]));
+    let mut sim = Simulation::new(&scene).unwrap();
+    let wall = sim.apply(&Action::AddWall {
+        polyline: vec![Vec2::new(1.2, 0.5), Vec2::new(1.8, 0.5)],
+    });
+    assert_eq!(wall.rejected, None);
+    let dropped = sim.apply(&Action::AddBody {
+        body: BodySpec::new_circle(0.08, 2000.0, [1.5, 0.85]),
+    });
+    assert_eq!(dropped.rejected, None);
+    while sim.time() < 1.5 {
+        assert_eq!(sim.step().non_finite, 0);
+    }
+    let b = sim.rigid_bodies();
+    let d = sim.spacing();
+    // The box rests on the block's top (0.4 m), the circle on the wall: the wall's particle
+    // rows lie d/2 either side of its line, and water would stand d/2 beyond them.
+    let box_bottom = lowest(&b[0]);
+    assert!(
+        (box_bottom - 0.4).abs() < 0.2 * d,
+        "box bottom at {box_bottom}"
+    );
+    let circle_bottom = lowest(&b[1]);
+    assert!(
+        (circle_bottom - (0.5 + d)).abs() < 0.2 * d,
+        "circle bottom at {circle_bottom}"
+    );
+    // Erasing the wall under the circle lets it fall into the water.
+    sim.apply(&Action::Erase {
+        at: Vec2::new(1.5, 0.5),
+        radius: 0.4,
+    });
+    while sim.time() < 2.5 {
+        assert_eq!(sim.step().non_finite, 0);
+    }
+    assert!(lowest(&sim.rigid_bodies()[1]) < 0.1, "the circle fell");
+    assert_eq!(sim.total_clamped(), 0);
+}

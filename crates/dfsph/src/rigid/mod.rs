@@ -63,6 +63,9 @@ pub(crate) struct RigidBodies {
     tank: rp::RigidBodyHandle,
     pub(crate) bodies: Vec<Rigid>,
     drag: Option<Drag>,
+    /// The obstacles and drawn walls as the bodies meet them: a ball of radius d/2 on each of
+    /// their boundary particles, fixed to the tank ([`Self::set_walls`]).
+    wall_colliders: Vec<rp::ColliderHandle>,
 }
 
 /// One body: its specification, its rapier handle and the boundary particles' body id.
@@ -141,6 +144,35 @@ impl RigidBodies {
             tank,
             bodies: Vec::new(),
             drag: None,
+            wall_colliders: Vec::new(),
+        }
+    }
+
+    /// Let the bodies meet the obstacles and drawn walls whose boundary particles lie at
+    /// `points` (m, in the tank's frame: their positions less the tank's offset), in place of
+    /// those given before. A ball of radius d/2 on each particle reaches as far as the water
+    /// the wall holds off: a body's outline then stops where its boundary particles lie a
+    /// spacing from the wall's, as at the tank's walls.
+    pub fn set_walls(&mut self, points: impl Iterator<Item = Vec2>, d: f32) {
+        let world = &mut self.world;
+        for handle in self.wall_colliders.drain(..) {
+            world.colliders.remove(
+                handle,
+                &mut world.islands,
+                &mut world.bodies,
+                &mut world.soft_bodies,
+                true,
+            );
+        }
+        for p in points {
+            let ball = rp::ColliderBuilder::ball(0.5 * d)
+                .translation(rv(p))
+                .friction(0.5);
+            self.wall_colliders.push(world.colliders.insert_with_parent(
+                ball,
+                self.tank,
+                &mut world.bodies,
+            ));
         }
     }
 
