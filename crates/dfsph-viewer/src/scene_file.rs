@@ -36,7 +36,15 @@ pub fn radius_range(scene: &Scene, max_particles: usize) -> Option<(f64, f64)> {
         .iter()
         .map(|b| (b.max[0] - b.min[0]).min(b.max[1] - b.min[1]))
         .fold(f64::INFINITY, f64::min);
-    let hi = hi.min(0.5 * narrowest);
+    // A rigid body must measure `MIN_BODY_SPACINGS` spacings (of 2r) across.
+    let thinnest = scene
+        .bodies
+        .iter()
+        .map(|b| b.thickness())
+        .fold(f64::INFINITY, f64::min);
+    let hi = hi
+        .min(0.5 * narrowest)
+        .min(thinnest / (2.0 * dfsph::rigid::spec::MIN_BODY_SPACINGS));
     let r = scene.particle_radius;
     Some((lo.min(r), hi.max(r)))
 }
@@ -282,6 +290,20 @@ mod tests {
         }
         let saved = Simulation::new(&coarse()).unwrap().to_scene();
         assert_eq!(radius_range(&saved, 1_000_000), None);
+        // The floating scene's thinnest body (0.3 m) holds three spacings up to r = 0.05 m.
+        let floating = dfsph::scene::builtin("floating").unwrap();
+        let thinnest = floating
+            .bodies
+            .iter()
+            .map(|b| b.thickness())
+            .fold(f64::INFINITY, f64::min);
+        let (_, hi) = radius_range(&floating, 1_000_000).unwrap();
+        assert!((hi - thinnest / 6.0).abs() < 1e-12, "{hi} {thinnest}");
+        let mut s = floating;
+        s.particle_radius = hi;
+        s.validate().unwrap();
+        s.particle_radius = hi * 1.01;
+        assert!(s.validate().is_err());
     }
 
     #[test]

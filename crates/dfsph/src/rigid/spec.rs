@@ -193,8 +193,8 @@ impl BodySpec {
         }
     }
 
-    /// The smallest distance across the body, m (for the sampling's two layers).
-    fn thickness(&self) -> f64 {
+    /// The smallest distance across the body, m (it must hold the sampling's two layers).
+    pub fn thickness(&self) -> f64 {
         match self.shape {
             BodyShape::Box => {
                 let [w, h] = self.size.unwrap_or([0.0, 0.0]);
