@@ -7,10 +7,19 @@
 //!   have both (`with_fma`), and for NEON on aarch64. The compiler turns each slot's
 //!   arithmetic into vector instructions. The pressure solve's multiply-adds are fused, as in
 //!   the AVX-512 kernels, and every other operation is the same in both and in the same
-//!   order, so the two paths are meant to give the same bits.
+//!   order, so the two paths give the same bits (tested where the CPU runs both).
 //! - [`SimdPath::Portable`]: the same lane kernels with separate multiplies and adds, for
 //!   any target (wasm32 included; with `-C target-feature=+simd128` the compiler vectorises
 //!   them there too). Its pressure sums round differently from the other two paths.
+//!
+//! Why AVX-512 keeps its own kernels instead of the lane kernels compiled for it (a
+//! `#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]` trampoline, which gives the
+//! same bits): compiled so, the lane kernels took 1.75 times the hand-written kernels' wall
+//! time on the 20k benchmark (AMD Zen 5, docs/PERFORMANCE.md). The compiler reads a
+//! slot's neighbour values with 16 loads or a gather instruction; the hand-written kernels
+//! read them on AMD by permutes out of three windows of 32 particles loaded once per block
+//! (`blocked::Gather::Windows`), and the neighbour search compresses the candidates that
+//! pass into its list in one instruction, which the compiler does not vectorise.
 //!
 //! Each path sums every particle's pairs in list order, so results are bit-identical across
 //! thread counts on any one path. A recording notes the path that made it
