@@ -11,7 +11,8 @@
 //!   collection that gives ParaView the frame times; the rigid bodies' outlines as polygon
 //!   cells;
 //! - [`render`]: a CPU rasteriser (tiny-skia) that draws a frame to PNG, fluid coloured by
-//!   speed with a [`colormap`] and a legend;
+//!   speed with a [`colormap`] and a legend, rigid bodies as filled outlines coloured by
+//!   density (as the interactive viewer draws them);
 //! - [`video`]: those frames, stamped with their simulated time, as an animated GIF (pure
 //!   Rust) or an MP4 (through `ffmpeg`), playing at simulated speed.
 //!

@@ -1,18 +1,23 @@
 //! CPU rasteriser: draws one frame to an image with tiny-skia, no display or GPU needed.
 //!
 //! Boundary particles (tank walls, obstacles) are grey discs, fluid particles are discs at
-//! their physical radius coloured by speed with [`viridis`](crate::colormap::viridis). A band
+//! their physical radius coloured by speed with [`viridis`](crate::colormap::viridis), and
+//! rigid bodies are their outlines, filled by density ([`body_fill`]) and edged darker
+//! ([`BODY_EDGE`]), over the water, as the interactive viewer draws them. A band
 //! above the scene holds the legend: `0`, the colour bar, and the speed at its top end in m/s.
 //! The scene keeps its aspect ratio; the image has the requested width.
 
+use std::borrow::Cow;
 use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
+use dfsph::rigid::RigidBodyState;
+use dfsph::scene::BodyShape;
 use dfsph::{Simulation, Snapshot, Vec2};
-use tiny_skia::{Color, FillRule, Paint, PathBuilder, Pixmap, Rect, Transform};
+use tiny_skia::{Color, FillRule, LineJoin, Paint, PathBuilder, Pixmap, Rect, Stroke, Transform};
 
 use crate::atomic::write_atomic;
-use crate::colormap::viridis;
+use crate::colormap::{body_fill, viridis, BODY_EDGE};
 use crate::font;
 
 /// Largest image side in pixels.
@@ -26,30 +31,70 @@ const TEXT_GREY: u8 = 40;
 /// Colour buckets: particles of one bucket are filled as one path.
 const BUCKETS: usize = 256;
 
-/// What stays the same between frames of a run: the walls and the particle size.
-#[derive(Clone, Copy, Debug)]
+/// What a frame draws besides the fluid: the tank, the walls, the rigid bodies and the
+/// particle size.
+#[derive(Clone, Debug, Default)]
 pub struct RenderGeometry<'a> {
     /// Tank interior, lower-left corner, m.
     pub tank_min: Vec2,
     /// Tank interior, upper-right corner, m.
     pub tank_max: Vec2,
-    /// Boundary particle positions, m.
-    pub boundary: &'a [Vec2],
-    /// Particle radius, m (fluid and boundary particles are drawn this size).
+    /// Wall particle positions (the tank's walls, obstacles), m, drawn as grey discs. Not
+    /// the rigid bodies' particles: [`Self::bodies`] draws those bodies whole.
+    pub boundary: Cow<'a, [Vec2]>,
+    /// Particle radius, m (fluid and wall particles are drawn this size).
     pub particle_radius: f32,
+    /// The rigid bodies, each drawn as its outline filled with [`body_fill`] of its mean
+    /// density, edged with [`BODY_EDGE`] (a circle also with a radius, so its spin shows).
+    pub bodies: Vec<RigidBodyState>,
 }
 
 impl<'a> RenderGeometry<'a> {
-    /// The geometry of a running simulation as it stands now.
+    /// The geometry of a running simulation as it stands now. Without rigid bodies the
+    /// walls are borrowed from `sim`; with them, the walls less the bodies' particles are
+    /// copied.
     pub fn of(sim: &'a Simulation) -> Self {
         let (tank_min, tank_max) = sim.tank_interior();
         Self {
             tank_min,
             tank_max,
-            boundary: sim.boundary_positions(),
+            boundary: wall_positions(sim),
             particle_radius: sim.particle_radius(),
+            bodies: sim.rigid_bodies(),
         }
     }
+
+    /// The same geometry owning its walls (to keep a frame past the simulation's next step,
+    /// or send it to another thread).
+    pub fn into_owned(self) -> RenderGeometry<'static> {
+        RenderGeometry {
+            tank_min: self.tank_min,
+            tank_max: self.tank_max,
+            boundary: Cow::Owned(self.boundary.into_owned()),
+            particle_radius: self.particle_radius,
+            bodies: self.bodies,
+        }
+    }
+}
+
+/// The positions of `sim`'s boundary particles that are not on a rigid body (the tank's
+/// walls, obstacles), in [`Simulation::boundary_positions`]' order.
+pub fn wall_positions(sim: &Simulation) -> Cow<'_, [Vec2]> {
+    let positions = sim.boundary_positions();
+    if sim.rigid_body_count() == 0 {
+        return Cow::Borrowed(positions);
+    }
+    let ids = sim.boundary_bodies();
+    let top = ids.iter().copied().max().unwrap_or(0);
+    let rigid: Vec<bool> = (0..=top).map(|b| sim.rigid_body_of(b).is_some()).collect();
+    Cow::Owned(
+        positions
+            .iter()
+            .zip(ids)
+            .filter(|(_, &b)| !rigid[usize::from(b)])
+            .map(|(&p, _)| p)
+            .collect(),
+    )
 }
 
 /// How to draw.
@@ -89,14 +134,21 @@ impl View {
     }
 }
 
-/// Draw one frame.
-pub fn render_frame(
-    geometry: &RenderGeometry,
-    snapshot: &Snapshot,
-    options: &RenderOptions,
-) -> Result<Pixmap> {
+/// Where a frame's pixels go: the world-to-pixel mapping and the image's size.
+struct Layout {
+    view: View,
+    width: u32,
+    height: u32,
+    /// Height of the legend band above the scene, pixels.
+    band: u32,
+}
+
+/// The layout of a frame of `geometry` `width` pixels wide (clamped to [`MIN_WIDTH`],
+/// [`MAX_SIDE`]).
+fn layout(geometry: &RenderGeometry, width: u32) -> Result<Layout> {
     let r = geometry.particle_radius.max(0.0);
     // Scene extent: the tank interior and every wall particle, plus one radius and a margin.
+    // (The rigid bodies stay in the tank.)
     let mut lo = geometry.tank_min.min(geometry.tank_max);
     let mut hi = geometry.tank_min.max(geometry.tank_max);
     for &p in geometry.boundary.iter().filter(|p| p.is_finite()) {
@@ -112,23 +164,41 @@ pub fn render_frame(
     hi += Vec2::splat(pad);
     let size = hi - lo;
 
-    let width = options.width.clamp(MIN_WIDTH, MAX_SIDE);
+    let width = width.clamp(MIN_WIDTH, MAX_SIDE);
     let band = band_height(width);
     let scale = (width as f32 / size.x).min((MAX_SIDE - band) as f32 / size.y);
     let scene_height = ((size.y * scale).ceil() as u32).max(1);
-    let height = band + scene_height;
+    Ok(Layout {
+        view: View {
+            x0: lo.x,
+            y1: hi.y,
+            scale,
+            left: 0.5 * (width as f32 - size.x * scale),
+            top: band as f32,
+        },
+        width,
+        height: band + scene_height,
+        band,
+    })
+}
+
+/// Draw one frame.
+pub fn render_frame(
+    geometry: &RenderGeometry,
+    snapshot: &Snapshot,
+    options: &RenderOptions,
+) -> Result<Pixmap> {
+    let Layout {
+        view,
+        width,
+        height,
+        band,
+    } = layout(geometry, options.width)?;
     let mut pixmap = Pixmap::new(width, height)
         .ok_or_else(|| anyhow!("cannot allocate a {width}x{height} image"))?;
     pixmap.fill(BACKGROUND);
-    let view = View {
-        x0: lo.x,
-        y1: hi.y,
-        scale,
-        left: 0.5 * (width as f32 - size.x * scale),
-        top: band as f32,
-    };
     // Discs thinner than a pixel would vanish under anti-aliasing.
-    let r_px = (r * scale).max(0.6);
+    let r_px = (geometry.particle_radius.max(0.0) * view.scale).max(0.6);
 
     // Walls.
     let mut walls = PathBuilder::new();
@@ -170,8 +240,68 @@ pub fn render_frame(
         }
     }
 
+    // Bodies over the water, as in the viewer: water pressed against a body reaches its
+    // outline, and the edge stays whole.
+    let edge_px = (width as f32 / 500.0).max(1.0);
+    for body in &geometry.bodies {
+        draw_body(&mut pixmap, &view, body, edge_px);
+    }
+
     draw_legend(&mut pixmap, band, top_speed);
     Ok(pixmap)
+}
+
+/// Fill `body`'s outline (a convex polygon) with its density's colour and stroke its edge
+/// `edge_px` wide; a circle also gets the radius to its outline's first point. A body with
+/// fewer than three points or a non-finite one is left out.
+fn draw_body(pixmap: &mut Pixmap, view: &View, body: &RigidBodyState, edge_px: f32) {
+    if body.outline.len() < 3 || !body.outline.iter().all(|p| p.is_finite()) {
+        return;
+    }
+    let mut outline = PathBuilder::new();
+    for (k, &p) in body.outline.iter().enumerate() {
+        let (x, y) = view.map(p);
+        if k == 0 {
+            outline.move_to(x, y);
+        } else {
+            outline.line_to(x, y);
+        }
+    }
+    outline.close();
+    let Some(outline) = outline.finish() else {
+        return;
+    };
+    let mut paint = Paint {
+        anti_alias: true,
+        ..Paint::default()
+    };
+    let [r, g, b] = body_fill(body.spec.mean_density());
+    paint.set_color_rgba8(r, g, b, 255);
+    pixmap.fill_path(
+        &outline,
+        &paint,
+        FillRule::Winding,
+        Transform::identity(),
+        None,
+    );
+    let stroke = Stroke {
+        width: edge_px,
+        line_join: LineJoin::Round,
+        ..Stroke::default()
+    };
+    let [r, g, b] = BODY_EDGE;
+    paint.set_color_rgba8(r, g, b, 255);
+    pixmap.stroke_path(&outline, &paint, &stroke, Transform::identity(), None);
+    if body.spec.shape == BodyShape::Circle && body.position.is_finite() {
+        let mut spoke = PathBuilder::new();
+        let (x, y) = view.map(body.position);
+        spoke.move_to(x, y);
+        let (x, y) = view.map(body.outline[0]);
+        spoke.line_to(x, y);
+        if let Some(spoke) = spoke.finish() {
+            pixmap.stroke_path(&spoke, &paint, &stroke, Transform::identity(), None);
+        }
+    }
 }
 
 /// Height of the legend band above the scene in an image `width` pixels wide.
@@ -349,7 +479,8 @@ mod tests {
         let geometry = RenderGeometry {
             tank_min: Vec2::ZERO,
             tank_max: Vec2::ONE,
-            boundary: &walls,
+            boundary: Cow::Borrowed(&walls[..]),
+            bodies: Vec::new(),
             particle_radius: 0.01,
         };
         let dir = tempfile::tempdir().unwrap();
@@ -405,7 +536,8 @@ mod tests {
         let geometry = RenderGeometry {
             tank_min: Vec2::ZERO,
             tank_max: Vec2::new(4.0, 1.0),
-            boundary: &walls,
+            boundary: Cow::Borrowed(&walls[..]),
+            bodies: Vec::new(),
             particle_radius: 0.01,
         };
         let img = render_frame(
@@ -437,7 +569,8 @@ mod tests {
         let geometry = RenderGeometry {
             tank_min: Vec2::ZERO,
             tank_max: Vec2::ONE,
-            boundary: &walls,
+            boundary: Cow::Borrowed(&walls[..]),
+            bodies: Vec::new(),
             particle_radius: 0.05,
         };
         let img = render_frame(&geometry, &snap, &RenderOptions::default()).unwrap();
@@ -461,7 +594,8 @@ mod tests {
         let geometry = RenderGeometry {
             tank_min: Vec2::ZERO,
             tank_max: Vec2::new(2.0, 1.0),
-            boundary: &walls,
+            boundary: Cow::Borrowed(&walls[..]),
+            bodies: Vec::new(),
             particle_radius: 0.01,
         };
         let plain = render_frame(&geometry, &snap, &RenderOptions::default()).unwrap();
@@ -481,6 +615,137 @@ mod tests {
         assert!(differs(&a, &plain, true), "the stamp draws something");
         assert!(differs(&a, &b, true), "different times, different stamps");
         assert!(!differs(&a, &plain, false), "nothing outside the region");
+    }
+
+    /// The built-in `floating` scene (four bodies, two of them circles) at a coarse 5 cm.
+    fn floating() -> Simulation {
+        let mut s = dfsph::scene::builtin("floating").unwrap();
+        s.particle_radius = 0.05;
+        Simulation::new(&s).unwrap()
+    }
+
+    /// Whether `p` lies in the convex counter-clockwise polygon `outline`, at least `margin`
+    /// from each of its edges (m).
+    fn inside(outline: &[Vec2], p: Vec2, margin: f32) -> bool {
+        (0..outline.len()).all(|k| {
+            let (a, b) = (outline[k], outline[(k + 1) % outline.len()]);
+            (b - a).normalize().perp_dot(p - a) >= margin
+        })
+    }
+
+    /// Distance from `p` to the segment `a`–`b`.
+    fn to_segment(p: Vec2, a: Vec2, b: Vec2) -> f32 {
+        let t = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+        (a + t * (b - a) - p).length()
+    }
+
+    /// Every pixel of `img` with the world point at its centre (`layout`'s mapping), m.
+    fn pixels_in_world(img: &Pixmap, view: &View) -> Vec<(u32, u32, Vec2)> {
+        (0..img.height())
+            .flat_map(|y| (0..img.width()).map(move |x| (x, y)))
+            .map(|(x, y)| {
+                let w = Vec2::new(
+                    view.x0 + (x as f32 + 0.5 - view.left) / view.scale,
+                    view.y1 - (y as f32 + 0.5 - view.top) / view.scale,
+                );
+                (x, y, w)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn bodies_are_filled_outlines_and_their_particles_are_not_wall_dots() {
+        let sim = floating();
+        let geometry = RenderGeometry::of(&sim);
+        assert_eq!(geometry.bodies.len(), 4);
+        // The walls are the boundary particles less the bodies', and none is in a body.
+        let on_bodies = sim
+            .boundary_bodies()
+            .iter()
+            .filter(|&&b| sim.rigid_body_of(b).is_some())
+            .count();
+        assert!(on_bodies > 0);
+        assert_eq!(
+            geometry.boundary.len(),
+            sim.boundary_positions().len() - on_bodies
+        );
+        for body in &geometry.bodies {
+            assert!(geometry
+                .boundary
+                .iter()
+                .all(|&p| !inside(&body.outline, p, 0.0)));
+        }
+
+        let options = RenderOptions {
+            width: 800,
+            speed_max: None,
+        };
+        let view = layout(&geometry, options.width).unwrap().view;
+        let img = render_frame(&geometry, &sim.snapshot(), &options).unwrap();
+        let pixels = pixels_in_world(&img, &view);
+        // Three pixels clear of the edge (and of a circle's radius line), a body is its fill.
+        let clear = 3.0 / view.scale;
+        for body in &geometry.bodies {
+            let fill = body_fill(body.spec.mean_density());
+            let spoke = (body.spec.shape == BodyShape::Circle).then_some(body.outline[0]);
+            let mut filled = 0;
+            for &(x, y, w) in &pixels {
+                if inside(&body.outline, w, clear)
+                    && spoke.is_none_or(|s| to_segment(w, body.position, s) > clear)
+                {
+                    assert_eq!(pixel(&img, x, y), fill, "({x}, {y}) in {:?}", body.spec);
+                    filled += 1;
+                }
+            }
+            assert!(filled > 200, "{filled} pixels of {:?}", body.spec);
+            // Its edge is darker than its fill.
+            let mid = 0.5 * (body.outline[0] + body.outline[1]);
+            let (x, y) = view.map(mid);
+            let edge = pixel(&img, x as u32, y as u32);
+            let sum = |c: [u8; 3]| c.iter().map(|&v| u32::from(v)).sum::<u32>();
+            assert!(sum(edge) + 60 < sum(fill), "edge {edge:?}, fill {fill:?}");
+            if spoke.is_some() {
+                let (x, y) = view.map(0.5 * (body.position + body.outline[0]));
+                assert!(sum(pixel(&img, x as u32, y as u32)) + 60 < sum(fill));
+            }
+        }
+        // The bodies' fills differ by density: the 300 kg/m³ box is paler than the
+        // 2,000 kg/m³ circle.
+        assert_ne!(
+            body_fill(geometry.bodies[0].spec.mean_density()),
+            body_fill(geometry.bodies[3].spec.mean_density())
+        );
+
+        // Drawn without the bodies, no wall grey is left where they are (which there is when
+        // their particles are drawn as walls).
+        let grey_in_bodies = |g: &RenderGeometry| {
+            let img = render_frame(g, &sim.snapshot(), &options).unwrap();
+            pixels.iter().any(|&(x, y, w)| {
+                let c = pixel(&img, x, y);
+                let grey = c[0] == c[1] && c[1] == c[2] && c[0] < 255;
+                grey && geometry.bodies.iter().any(|b| inside(&b.outline, w, 0.0))
+            })
+        };
+        let bare = RenderGeometry {
+            bodies: Vec::new(),
+            ..geometry.clone()
+        };
+        assert!(!grey_in_bodies(&bare));
+        let all_particles = RenderGeometry {
+            boundary: Cow::Borrowed(sim.boundary_positions()),
+            ..bare
+        };
+        assert!(grey_in_bodies(&all_particles));
+    }
+
+    #[test]
+    fn a_body_with_a_bad_outline_is_left_out() {
+        let sim = floating();
+        let mut geometry = RenderGeometry::of(&sim).into_owned();
+        geometry.bodies[0].outline[1] = Vec2::NAN;
+        geometry.bodies[1].outline.truncate(2);
+        let img = render_frame(&geometry, &sim.snapshot(), &RenderOptions::default()).unwrap();
+        assert!(img.encode_png().is_ok());
     }
 
     #[test]

@@ -22,7 +22,7 @@ use anyhow::{anyhow, Context, Result};
 use tiny_skia::Pixmap;
 
 use crate::atomic::{tmp_path, AtomicFile};
-use crate::colormap::viridis;
+use crate::colormap::{body_ramp, viridis, BODY_EDGE};
 
 /// Shortest GIF frame delay, 1/100 s: browsers and most viewers replace 0 and 1 with 10.
 pub const GIF_MIN_DELAY_CS: u64 = 2;
@@ -92,15 +92,20 @@ fn to_rgb(pixmap: &Pixmap, width: u32, height: u32, out: &mut Vec<u8>) {
     }
 }
 
-/// The GIF's one palette, shared by every frame: 200 steps of viridis (the fluid's colours)
-/// and 56 greys (background, walls, text, and their anti-aliased edges). The renderer draws
-/// from these colours only, so a fixed palette keeps them exact and stable from frame to
-/// frame, where a per-frame quantiser would make the colour of still water flicker.
+/// The GIF's one palette, shared by every frame: 200 steps of viridis (the fluid's colours),
+/// 24 steps of the rigid bodies' fills and their edge colour, and 31 greys (background,
+/// walls, text, and their anti-aliased edges). The renderer draws from these colours only,
+/// so a fixed palette keeps them stable from frame to frame, where a per-frame quantiser
+/// would make the colour of still water flicker. (A body's fill is the nearest of the 24:
+/// at most about 3 levels off in each channel.)
 fn palette() -> Vec<[u8; 3]> {
     const VIRIDIS_STEPS: usize = 200;
+    const BODY_STEPS: usize = 24;
     let mut colors: Vec<[u8; 3]> = (0..VIRIDIS_STEPS)
         .map(|k| viridis(k as f32 / (VIRIDIS_STEPS - 1) as f32))
         .collect();
+    colors.extend((0..BODY_STEPS).map(|k| body_ramp(k as f32 / (BODY_STEPS - 1) as f32)));
+    colors.push(BODY_EDGE);
     // The renderer's exact greys first (background, walls, text), then an even ramp.
     colors.extend([[255; 3], [150; 3], [40; 3]]);
     let ramp = 256 - colors.len();
@@ -547,8 +552,25 @@ mod tests {
     fn palette_holds_the_renderers_colours() {
         let p = palette();
         assert_eq!(p.len(), 256);
-        for c in [[255; 3], [150; 3], [40; 3], viridis(0.0), viridis(1.0)] {
+        for c in [
+            [255; 3],
+            [150; 3],
+            [40; 3],
+            viridis(0.0),
+            viridis(1.0),
+            BODY_EDGE,
+        ] {
             assert!(p.contains(&c), "{c:?}");
+        }
+        // Every body's fill is within a few levels of an entry.
+        let mut q = Quantizer::new();
+        for k in 0..=100 {
+            let fill = body_ramp(k as f32 / 100.0);
+            let near = p[q.index(fill) as usize];
+            assert!(
+                (0..3).all(|c| near[c].abs_diff(fill[c]) <= 3),
+                "{fill:?} -> {near:?}"
+            );
         }
         let mut q = Quantizer::new();
         assert_eq!(p[q.index([255; 3]) as usize], [255; 3]);

@@ -1,7 +1,7 @@
 //! Rigid bodies in the viewer: the box or circle that `b` and `o` (or the panel's buttons)
 //! drop, sized for the scene and kept inside the tank, and how bodies are drawn.
 
-use dfsph::rigid::spec::{BODY_DENSITY_RANGE, MIN_BODY_SPACINGS};
+use dfsph::rigid::spec::MIN_BODY_SPACINGS;
 use dfsph::rigid::RigidBodyState;
 use dfsph::scene::{BodyShape, BodySpec};
 use dfsph::{Simulation, Vec2};
@@ -64,20 +64,18 @@ pub fn drop_spec(sim: &Simulation, shape: BodyShape, at: Option<Vec2>, density: 
     spec
 }
 
-/// Fill of a body of `density` (kg/m³): pale wood for the lightest, through wood at about
-/// water's density, to dark bronze for the heaviest (log scale), so floaters and sinkers
-/// look apart. Distinct from the water's colour maps and the walls' grey-beige.
+/// Fill of a body of `density` (kg/m³): [`dfsph_io::colormap::body_fill`], the colour the
+/// CPU rasteriser (`dfsph2d run --format png`, the recordings) fills it with too.
 pub fn body_fill(density: f64) -> Color32 {
-    let (lo, hi) = BODY_DENSITY_RANGE;
-    let t = ((density.max(lo).ln() - lo.ln()) / (hi.ln() - lo.ln())).clamp(0.0, 1.0) as f32;
-    let light = [236.0, 196.0, 128.0];
-    let dark = [112.0, 62.0, 30.0];
-    let c: [u8; 3] = std::array::from_fn(|i| (light[i] + t * (dark[i] - light[i])).round() as u8);
-    Color32::from_rgb(c[0], c[1], c[2])
+    let [r, g, b] = dfsph_io::colormap::body_fill(density);
+    Color32::from_rgb(r, g, b)
 }
 
-/// Outline of every body.
-pub const BODY_EDGE: Color32 = Color32::from_rgb(60, 34, 14);
+/// Outline of every body: [`dfsph_io::colormap::BODY_EDGE`].
+pub const BODY_EDGE: Color32 = {
+    let [r, g, b] = dfsph_io::colormap::BODY_EDGE;
+    Color32::from_rgb(r, g, b)
+};
 
 /// Draw every body, filled with its outline, in the particles' world-to-screen mapping;
 /// a circle also gets a radius, so that its spin shows.
@@ -91,7 +89,7 @@ pub fn draw_bodies(painter: &egui::Painter, transform: &ViewTransform, bodies: &
         if points.len() < 3 {
             continue;
         }
-        let fill = body_fill(mean_density(body));
+        let fill = body_fill(body.spec.mean_density());
         painter.add(Shape::convex_polygon(
             points.clone(),
             fill,
@@ -102,29 +100,6 @@ pub fn draw_bodies(painter: &egui::Painter, transform: &ViewTransform, bodies: &
             painter.line_segment([centre, points[0]], Stroke::new(1.5, BODY_EDGE));
         }
     }
-}
-
-/// A body's mean density, kg/m³ (from its mass and area when the spec gave a mass).
-fn mean_density(body: &RigidBodyState) -> f64 {
-    body.spec.density.unwrap_or_else(|| {
-        let area = polygon_area(&body.outline);
-        if area > 0.0 {
-            f64::from(body.mass) / area
-        } else {
-            1000.0
-        }
-    })
-}
-
-fn polygon_area(p: &[Vec2]) -> f64 {
-    let n = p.len();
-    let twice: f64 = (0..n)
-        .map(|i| {
-            let (a, b) = (p[i], p[(i + 1) % n]);
-            f64::from(a.x) * f64::from(b.y) - f64::from(b.x) * f64::from(a.y)
-        })
-        .sum();
-    0.5 * twice.abs()
 }
 
 /// Where a body's grabbed point is now: `local` is the point in the body's frame, as

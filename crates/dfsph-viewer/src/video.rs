@@ -22,7 +22,7 @@ use std::thread::JoinHandle;
 use anyhow::Result;
 #[cfg(not(target_arch = "wasm32"))]
 use anyhow::{anyhow, Context as _};
-use dfsph::{Simulation, Snapshot, Vec2};
+use dfsph::{Simulation, Snapshot};
 use dfsph_io::render::{RenderGeometry, RenderOptions};
 use dfsph_io::video::{GifWriter, Mp4Writer};
 
@@ -50,22 +50,17 @@ fn frame_due(last: f64, t: f64) -> bool {
     t >= last + FRAME_INTERVAL || t < last
 }
 
-/// A copy of what one frame draws.
+/// A copy of what one frame draws: the fluid, and the tank, walls and rigid bodies.
 struct Frame {
     snapshot: Snapshot,
-    boundary: Vec<Vec2>,
-    tank: (Vec2, Vec2),
-    radius: f32,
+    geometry: RenderGeometry<'static>,
 }
 
 impl Frame {
     fn of(sim: &Simulation) -> Self {
-        let (lo, hi) = sim.tank_interior();
         Self {
             snapshot: sim.snapshot(),
-            boundary: sim.boundary_positions().to_vec(),
-            tank: (lo, hi),
-            radius: sim.particle_radius(),
+            geometry: RenderGeometry::of(sim).into_owned(),
         }
     }
 }
@@ -219,13 +214,7 @@ impl FrameEncoder {
 
     /// Draw `frame` with its time stamped; write the one before it.
     fn frame(&mut self, frame: &Frame) -> Result<()> {
-        let geometry = RenderGeometry {
-            tank_min: frame.tank.0,
-            tank_max: frame.tank.1,
-            boundary: &frame.boundary,
-            particle_radius: frame.radius,
-        };
-        let mut picture = dfsph_io::render_frame(&geometry, &frame.snapshot, &self.options)?;
+        let mut picture = dfsph_io::render_frame(&frame.geometry, &frame.snapshot, &self.options)?;
         let time = frame.snapshot.time;
         dfsph_io::render::stamp_time(&mut picture, time, self.decimals);
         if let Some((previous, t0)) = self.pending.take() {
