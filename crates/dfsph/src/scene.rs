@@ -1227,18 +1227,31 @@ pub const BUILTIN_SCENES: &[BuiltinScene] = &[
     },
     BuiltinScene {
         name: "floating",
-        description: "a dam break sweeping floating boxes and circles (300-700 kg/m3) and a \
-                      sinking one (2,000 kg/m3) into the far wall",
-        // Resting on the dry floor downstream, a hair above it: the surge lifts the light ones
-        // and carries them into the right wall, and pushes the heavy one along the bottom.
-        // Every body is 0.3 m across or more, so the scene holds at particle radii up to 5 cm
-        // (a body must be three spacings across).
+        description: "a dam break into a pool with floating boxes and circles (300-700 kg/m3) \
+                      and a sunken one (2,000 kg/m3), swept into the far wall",
+        // The bodies float in a pool 0.25 m deep, near their drafts, so water lies under the
+        // light ones: a body resting on a dry floor has none under it to lift it (no water
+        // fits into a gap narrower than a spacing). Every body is 0.3 m across or more, so
+        // the scene holds at particle radii up to 5 cm (a body must be three spacings
+        // across).
         build: || Scene {
+            fluid: vec![
+                FluidBlock {
+                    min: [0.0, 0.0],
+                    max: [1.0, 2.0],
+                    velocity: [0.0, 0.0],
+                },
+                FluidBlock {
+                    min: [1.0, 0.0],
+                    max: [4.0, 0.25],
+                    velocity: [0.0, 0.0],
+                },
+            ],
             bodies: vec![
-                BodySpec::new_box([0.4, 0.3], 300.0, [1.7, 0.16]),
-                BodySpec::new_circle(0.15, 500.0, [2.4, 0.16]),
-                BodySpec::new_box([0.3, 0.3], 700.0, [3.0, 0.16]),
-                BodySpec::new_circle(0.15, 2000.0, [3.6, 0.16]),
+                BodySpec::new_box([0.4, 0.3], 300.0, [1.7, 0.31]),
+                BodySpec::new_circle(0.15, 500.0, [2.4, 0.25]),
+                BodySpec::new_box([0.3, 0.3], 700.0, [3.0, 0.19]),
+                BodySpec::new_circle(0.15, 2000.0, [3.6, 0.155]),
             ],
             ..Scene::default()
         },
