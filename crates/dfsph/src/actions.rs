@@ -323,6 +323,14 @@ impl Simulation {
         self.walls_moved_for_bodies = true;
         let mut samples = BoundarySamples::default();
         samples.add_polyline(polyline, self.spacing, body);
+        // A wall drawn through a rigid body would trap it: rapier pushes the body out of the
+        // wall's balls (radius d/2, `RigidBodies::set_walls`) against the floor or another
+        // wall, and through that (stress found a box pushed 2 cm into the floor). The wall
+        // stops short of each body instead, its balls half a spacing clear of the outline.
+        if let Some(rigid) = &self.rigid {
+            let clear = self.spacing;
+            samples.retain(|p| (0..rigid.len()).all(|k| rigid.signed_distance(k, p) >= clear));
+        }
         let added = samples.positions.len();
         // Fluid inside the new wall would be crushed: remove what lies within a spacing of it.
         let mut grid = Grid::new(self.spacing);
@@ -356,6 +364,19 @@ impl Simulation {
             .is_some_and(|r| (0..r.len()).any(|k| r.signed_distance(k, centre) < 0.0))
         {
             return Err("another body is there");
+        }
+        // A body dropped onto an obstacle or a drawn wall would be pushed out of it by
+        // rapier, through whatever lies beyond (the floor): it is refused, as on another body.
+        let d = self.spacing;
+        let probe = crate::rigid::signed_distance_of(spec, centre);
+        let walls = self
+            .boundary
+            .position
+            .iter()
+            .zip(&self.boundary.body)
+            .filter(|&(_, &b)| b != 0 && self.bodies[b as usize].rigid.is_none());
+        if walls.into_iter().any(|(&p, _)| probe(p) < 0.5 * d) {
+            return Err("a wall is there");
         }
         let before = self.boundary.len();
         let k = self.add_rigid_body(spec);
@@ -404,6 +425,49 @@ mod tests {
         s.particle_radius = radius;
         s.obstacles.push(scene::Obstacle::Rect { min, max });
         s
+    }
+
+    #[test]
+    fn a_wall_stops_short_of_a_rigid_body_and_a_body_is_not_dropped_onto_a_wall() {
+        // Either overlap would have rapier push the body out through the floor.
+        let scene = scene::Scene::from_json(
+            r#"{"particle_radius": 0.01, "tank": {"min": [0, 0], "max": [2, 1]},
+                "fluid": [{"min": [0, 0], "max": [2, 0.3]}],
+                "bodies": [{"shape": "box", "size": [0.4, 0.2], "density": 500,
+                            "position": [1.0, 0.6]}]}"#,
+        )
+        .unwrap();
+        let mut sim = Simulation::new(&scene).unwrap();
+        let d = sim.spacing();
+        let wall = sim.apply(&Action::AddWall {
+            polyline: vec![Vec2::new(0.4, 0.6), Vec2::new(1.6, 0.6)],
+        });
+        assert_eq!(wall.rejected, None);
+        let drawn: Vec<Vec2> = sim
+            .boundary_positions()
+            .iter()
+            .zip(sim.boundary_bodies())
+            .filter(|&(_, &b)| b != 0 && sim.rigid_body_of(b).is_none())
+            .map(|(&p, _)| p)
+            .collect();
+        assert_eq!(drawn.len(), wall.boundary_change as usize);
+        // The box spans x 0.8-1.2: the wall is drawn on both sides, and not within a spacing
+        // of it.
+        assert!(drawn.iter().any(|p| p.x < 0.8 - d) && drawn.iter().any(|p| p.x > 1.2 + d));
+        assert!(
+            drawn
+                .iter()
+                .all(|p| p.x < 0.8 - 0.99 * d || p.x > 1.2 + 0.99 * d),
+            "a wall particle within a spacing of the box"
+        );
+        let circle = |at: [f64; 2]| Action::AddBody {
+            body: BodySpec::new_circle(0.05, 500.0, at),
+        };
+        assert_eq!(
+            sim.apply(&circle([0.55, 0.62])).rejected,
+            Some("a wall is there")
+        );
+        assert_eq!(sim.apply(&circle([0.55, 0.75])).rejected, None);
     }
 
     fn sim() -> Simulation {

@@ -79,6 +79,22 @@ pub struct BoundarySamples {
 }
 
 impl BoundarySamples {
+    /// Keep only the samples whose position passes `keep`.
+    pub fn retain(&mut self, keep: impl Fn(Vec2) -> bool) {
+        let mut k = 0;
+        for i in 0..self.positions.len() {
+            if keep(self.positions[i]) {
+                self.positions.swap(k, i);
+                self.bodies.swap(k, i);
+                self.lattice_area.swap(k, i);
+                k += 1;
+            }
+        }
+        self.positions.truncate(k);
+        self.bodies.truncate(k);
+        self.lattice_area.truncate(k);
+    }
+
     /// Two layers outside the interior `[lo, hi]` of a box, corners filled: the tank walls.
     pub fn add_tank(&mut self, lo: Vec2, hi: Vec2, d: f32, body: BodyId) {
         let nx = ((hi.x - lo.x) / d).round().max(1.0) as i32;
