@@ -48,8 +48,9 @@ pub enum Command {
 
 const STRESS_ABOUT: &str = "\
 Drive a scene with a seeded random sequence of the viewer's actions, for K steps, checking the
-simulation after every action and every step. Prints one summary line; exits with code 1 at the
-first violation, naming it and its step.
+simulation after every action and every step. Prints one summary line (with the deepest water
+seen: the fluid's area per unit width in the fullest strip across gravity); exits with code 1
+at the first violation, naming it and its step.
 
 Actions (all at full strength, anywhere in and around the tank): shake the tank left and right,
 push and pull with the pointer, pour (up to the viewer's particle budget: the scene's fluid and

@@ -145,6 +145,8 @@ pub struct StressOutcome {
     pub displaced: usize,
     pub max_density_error_pct: f64,
     pub max_speed: f64,
+    /// The deepest water seen, m ([`deepest_water`], after every step).
+    pub max_depth_m: f64,
     pub clamped: u64,
     pub non_finite: u64,
     /// Rigid bodies at the end, and the most fluid particles seen inside one at once.
@@ -181,7 +183,7 @@ impl StressOutcome {
         one_line(&format!(
             "stress {scene} seed={} steps={}: {verdict} — {ran}particles {} (+{} poured −{} \
              erased{displaced}{resets}), {} bodies, max density error {:.2} % (bound {} %), max speed \
-             {:.2} m/s, {} clamps, {} inside bodies, {} non-finite, {} actions ({} rejected)",
+             {:.2} m/s, deepest water {:.2} m, {} clamps, {} inside bodies, {} non-finite, {} actions ({} rejected)",
             plan.seed,
             plan.steps,
             self.n_fluid,
@@ -191,6 +193,7 @@ impl StressOutcome {
             self.max_density_error_pct,
             plan.density_bound_pct,
             self.max_speed,
+            self.max_depth_m,
             self.clamped,
             self.max_inside_bodies,
             self.non_finite,
@@ -276,6 +279,7 @@ pub fn run<W: std::io::Write>(
         if s.max_speed.is_finite() {
             out.max_speed = out.max_speed.max(s.max_speed);
         }
+        out.max_depth_m = out.max_depth_m.max(deepest_water(&sim) as f64);
         let bodies = sim.rigid_body_count() > 0;
         let what = check_step(&s, plan.density_bound_pct, bodies)
             .or_else(|| check_state(&sim, expected, &mut out));
@@ -494,6 +498,34 @@ pub fn fluid_inside_bodies(
         }
     }
     inside
+}
+
+/// The deepest water in `sim`, m: the fluid's area per unit width in the fullest strip
+/// across gravity (strips one kernel support, 2d, wide), which is the depth its particles
+/// fill there when packed at rest. Issue 25 asks whether the pours build water metres deep;
+/// a splash adds little to a strip, unlike the fluid's extent along gravity. 0 without
+/// gravity.
+pub fn deepest_water(sim: &Simulation) -> f32 {
+    let g = sim.gravity();
+    let positions = sim.positions();
+    if g.length_squared() == 0.0 || positions.is_empty() {
+        return 0.0;
+    }
+    let across = g.perp().normalize();
+    let width = 2.0 * sim.spacing();
+    let strip = |x: &Vec2| (x.dot(across) / width).floor() as i64;
+    let first = positions.iter().map(strip).min().unwrap_or(0);
+    let mut counts = Vec::new();
+    for x in positions {
+        let k = (strip(x) - first) as usize;
+        if k >= counts.len() {
+            counts.resize(k + 1, 0u32);
+        }
+        counts[k] += 1;
+    }
+    let fullest = counts.into_iter().max().unwrap_or(0);
+    let area = sim.particle_mass() / sim.rest_density();
+    fullest as f32 * area / width
 }
 
 /// SplitMix64: tiny, fast, and the same sequence on every platform and version.
@@ -941,6 +973,22 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn the_deepest_water_is_the_columns_height_whichever_way_gravity_points() {
+        // The dam break's column is 2 m high and 1 m wide.
+        let mut scene = coarse();
+        scene.bodies.clear();
+        let sim = Simulation::new(&scene).unwrap();
+        let depth = deepest_water(&sim);
+        assert!((depth - 2.0).abs() < 0.1, "{depth}");
+        // With gravity along x the same column is 1 m deep.
+        scene.gravity = [-9.81, 0.0];
+        let depth = deepest_water(&Simulation::new(&scene).unwrap());
+        assert!((depth - 1.0).abs() < 0.1, "{depth}");
+        scene.gravity = [0.0, 0.0];
+        assert_eq!(deepest_water(&Simulation::new(&scene).unwrap()), 0.0);
     }
 
     #[test]
