@@ -69,7 +69,9 @@ impl Xvfb {
             .spawn()
             .expect("starting Xvfb");
         let mut xvfb = Xvfb { child, number };
-        let deadline = Instant::now() + Duration::from_secs(20);
+        // A minute: the first server on a fresh machine compiles its keymap, and a CI run
+        // once saw 20 s pass under a loaded host.
+        let deadline = Instant::now() + Duration::from_secs(60);
         // The socket file appears before the server accepts connections (a viewer started
         // in between fails to connect on a loaded machine): wait until a client gets in.
         while !(xvfb.socket().exists() && xvfb.accepts_clients()) {
