@@ -375,7 +375,7 @@ impl Simulation {
             .iter()
             .zip(&self.boundary.body)
             .filter(|&(_, &b)| b != 0 && self.bodies[b as usize].rigid.is_none());
-        if walls.into_iter().any(|(&p, _)| probe(p) < 0.5 * d) {
+        if walls.into_iter().any(|(&p, _)| probe(p) < 0.25 * d) {
             return Err("a wall is there");
         }
         let before = self.boundary.len();

@@ -523,6 +523,66 @@ impl Scene {
                 .sum::<usize>()
     }
 
+    /// Bodies may touch each other and the obstacles but not overlap them (a quarter spacing
+    /// of slack), nor lie within half a spacing of an obstacle's wall particles (the balls of
+    /// radius d/2 that bodies collide with): rapier would push such a body out, through
+    /// whatever lies beyond (the floor), as `Action::AddBody` refuses.
+    fn check_body_overlaps(&self) -> Result<(), SceneError> {
+        if self.bodies.is_empty() {
+            return Ok(());
+        }
+        let d = self.spacing() as f32;
+        let outlines: Vec<Vec<glam::Vec2>> = self
+            .bodies
+            .iter()
+            .map(|b| crate::rigid::outline_points(b, 0.5 * d))
+            .collect();
+        let distances: Vec<_> = self
+            .bodies
+            .iter()
+            .map(|b| {
+                let centre = glam::Vec2::new(b.position[0] as f32, b.position[1] as f32);
+                crate::rigid::signed_distance_of(b, centre)
+            })
+            .collect();
+        let key = |i: usize| format!("bodies[{i}].position");
+        for i in 0..self.bodies.len() {
+            for j in 0..i {
+                let inside =
+                    |a: usize, b: usize| outlines[a].iter().any(|&p| distances[b](p) < -0.25 * d);
+                if inside(i, j) || inside(j, i) {
+                    return Err(invalid(
+                        key(i),
+                        format!("the body overlaps bodies[{j}]; bodies may touch but not overlap"),
+                    ));
+                }
+            }
+        }
+        for (k, obstacle) in self.obstacles.iter().enumerate() {
+            let mut walls = crate::boundary::BoundarySamples::default();
+            walls.add_obstacle(obstacle, d, 1);
+            for (i, distance) in distances.iter().enumerate() {
+                let in_box = match obstacle {
+                    Obstacle::Rect { min, max } => outlines[i].iter().any(|p| {
+                        let (p, q) = (p.as_dvec2(), 0.25 * self.spacing());
+                        p.x > min[0] + q && p.x < max[0] - q && p.y > min[1] + q && p.y < max[1] - q
+                    }),
+                    _ => false,
+                };
+                if in_box || walls.positions.iter().any(|&p| distance(p) < 0.25 * d) {
+                    return Err(invalid(
+                        key(i),
+                        format!(
+                            "the body overlaps obstacles[{k}] (or lies within half a particle \
+                             spacing of its wall); bodies may touch obstacles but not overlap them"
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Fluid blocks may touch, and overlap by less than one particle spacing d along either
     /// axis (their particles then start compressed and are pushed apart, see
     /// `SolverSettings::max_correction_speed`). A deeper overlap puts particles on top of each
@@ -873,10 +933,12 @@ impl Scene {
         for (i, b) in self.bodies.iter().enumerate() {
             b.validate(&format!("bodies[{i}]"), d, &self.tank)?;
         }
+        self.check_body_overlaps()?;
         if !self.bodies.is_empty() && self.solver.method == Method::Wcsph {
             return Err(invalid(
                 "solver.method",
-                "rigid bodies are coupled through the DFSPH solves; the WCSPH baseline has                  none (use \"dfsph\", or leave `bodies` out)",
+                "rigid bodies are coupled through the DFSPH solves; the WCSPH baseline has none \
+                 (use \"dfsph\", or leave `bodies` out)",
             ));
         }
         for (i, o) in self.obstacles.iter().enumerate() {

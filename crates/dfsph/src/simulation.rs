@@ -234,19 +234,7 @@ impl Simulation {
         for obstacle in &scene.obstacles {
             let body = sim.bodies.len() as BodyId;
             sim.bodies.push(Body::default());
-            match obstacle {
-                Obstacle::Rect { min, max } => {
-                    samples.add_rect(to_vec2(*min), to_vec2(*max), d, body)
-                }
-                Obstacle::Polyline { points } => {
-                    let pts: Vec<Vec2> = points.iter().map(|&p| to_vec2(p)).collect();
-                    samples.add_polyline(&pts, d, body)
-                }
-                Obstacle::Particles { positions } => {
-                    let pts: Vec<Vec2> = positions.iter().map(|&p| to_vec2(p)).collect();
-                    samples.add_points(&pts, body)
-                }
-            }
+            samples.add_obstacle(obstacle, d, body);
         }
         for spec in &scene.bodies {
             sim.add_rigid_body(spec);

@@ -414,6 +414,9 @@ fn bodies_land_on_obstacles_and_drawn_walls() {
         (circle_bottom - (0.5 + d)).abs() < 0.2 * d,
         "circle bottom at {circle_bottom}"
     );
+    // Resting on them is touching, not overlapping: the state saved now loads again.
+    let saved = sim.to_scene().to_json();
+    assert_eq!(Scene::from_json(&saved).map(|s| s.bodies.len()), Ok(2));
     // Erasing the wall under the circle lets it fall into the water.
     sim.apply(&Action::Erase {
         at: Vec2::new(1.5, 0.5),

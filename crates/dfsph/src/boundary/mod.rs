@@ -140,6 +140,23 @@ impl BoundarySamples {
         }
     }
 
+    /// The wall particles of a scene's obstacle.
+    pub fn add_obstacle(&mut self, obstacle: &crate::scene::Obstacle, d: f32, body: BodyId) {
+        use crate::scene::Obstacle;
+        let v = |p: &[f64; 2]| Vec2::new(p[0] as f32, p[1] as f32);
+        match obstacle {
+            Obstacle::Rect { min, max } => self.add_rect(v(min), v(max), d, body),
+            Obstacle::Polyline { points } => {
+                let pts: Vec<Vec2> = points.iter().map(v).collect();
+                self.add_polyline(&pts, d, body)
+            }
+            Obstacle::Particles { positions } => {
+                let pts: Vec<Vec2> = positions.iter().map(v).collect();
+                self.add_points(&pts, body)
+            }
+        }
+    }
+
     /// A solid box: its two outermost layers (the inside is never reached by fluid).
     pub fn add_rect(&mut self, lo: Vec2, hi: Vec2, d: f32, body: BodyId) {
         let nx = ((hi.x - lo.x) / d).round().max(1.0) as i32;

@@ -477,6 +477,25 @@ pub(crate) fn signed_distance_of(spec: &BodySpec, centre: Vec2) -> impl Fn(Vec2)
     move |p| outline.signed_distance(unrotate.rotate(p - centre))
 }
 
+/// Points along the outline of a body placed by `spec` (m, the tank's frame), at most `step`
+/// (m) apart.
+pub(crate) fn outline_points(spec: &BodySpec, step: f32) -> Vec<Vec2> {
+    let centre = Vec2::new(spec.position[0] as f32, spec.position[1] as f32);
+    let rotate = Vec2::from_angle(spec.angle as f32);
+    let corners: Vec<Vec2> = Outline::of(spec)
+        .vertices()
+        .into_iter()
+        .map(|q| centre + rotate.rotate(q))
+        .collect();
+    let mut points = Vec::new();
+    for (k, &a) in corners.iter().enumerate() {
+        let b = corners[(k + 1) % corners.len()];
+        let n = ((b - a).length() / step).ceil().max(1.0) as usize;
+        points.extend((0..n).map(|i| a.lerp(b, i as f32 / n as f32)));
+    }
+    points
+}
+
 /// Where the tank's kinematic body stands.
 fn tank_offset_of(world: &rp::PhysicsWorld, tank: rp::RigidBodyHandle) -> Vec2 {
     gv(world.bodies[tank].translation())

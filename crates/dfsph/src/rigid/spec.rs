@@ -585,9 +585,34 @@ mod tests {
                 r#"[{"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [1, 1]}], "solver": {"method": "wcsph"}"#,
                 "`solver.method`",
             ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [1, 1]},
+                    {"shape": "circle", "radius": 0.1, "density": 500, "position": [1.25, 1.05]}]"#,
+                "`bodies[1].position`: the body overlaps bodies[0]",
+            ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [1, 1]}],
+                    "obstacles": [{"type": "rect", "min": [1.1, 0], "max": [1.5, 0.95]}]"#,
+                "`bodies[0].position`: the body overlaps obstacles[0]",
+            ),
+            (
+                r#"[{"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [1, 1]}],
+                    "obstacles": [{"type": "polyline", "points": [[0.5, 0.5], [1.5, 1.5]]}]"#,
+                "`bodies[0].position`: the body overlaps obstacles[0]",
+            ),
         ] {
             let e = error(bodies);
             assert!(e.contains(key), "{bodies}: {e} does not name {key}");
+            assert!(!e.contains("  "), "a run of spaces in: {e}");
+        }
+        // Touching is allowed: side by side, and a box on a rect obstacle.
+        for ok in [
+            r#"[{"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [1, 1]},
+                {"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [1.4, 1]}]"#,
+            r#"[{"shape": "box", "size": [0.4, 0.2], "density": 500, "position": [1, 1]}],
+                "obstacles": [{"type": "rect", "min": [0.5, 0.5], "max": [1.5, 0.9]}]"#,
+        ] {
+            Scene::from_json(&format!(r#"{{"particle_radius": 0.02, "bodies": {ok}}}"#)).unwrap();
         }
     }
 
