@@ -367,6 +367,8 @@ impl Simulation {
         }
         // A body dropped onto an obstacle or a drawn wall would be pushed out of it by
         // rapier, through whatever lies beyond (the floor): it is refused, as on another body.
+        // A new body must clear the walls' balls (radius d/2); a scene file may have one
+        // resting on them, a quarter spacing in (`Scene::check_body_overlaps`).
         let d = self.spacing;
         let probe = crate::rigid::signed_distance_of(spec, centre);
         let walls = self
@@ -375,7 +377,7 @@ impl Simulation {
             .iter()
             .zip(&self.boundary.body)
             .filter(|&(_, &b)| b != 0 && self.bodies[b as usize].rigid.is_none());
-        if walls.into_iter().any(|(&p, _)| probe(p) < 0.25 * d) {
+        if walls.into_iter().any(|(&p, _)| probe(p) < 0.5 * d) {
             return Err("a wall is there");
         }
         let before = self.boundary.len();

@@ -526,7 +526,7 @@ impl Scene {
     /// Bodies may touch each other and the obstacles but not overlap them (a quarter spacing
     /// of slack), nor lie within half a spacing of an obstacle's wall particles (the balls of
     /// radius d/2 that bodies collide with): rapier would push such a body out, through
-    /// whatever lies beyond (the floor), as `Action::AddBody` refuses.
+    /// whatever lies beyond (the floor). (`Action::AddBody` asks a new body to clear the balls.)
     fn check_body_overlaps(&self) -> Result<(), SceneError> {
         if self.bodies.is_empty() {
             return Ok(());
