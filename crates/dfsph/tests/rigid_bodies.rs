@@ -113,19 +113,24 @@ fn a_circle_of_a_quarter_of_the_water_density_floats_at_the_analytic_draft() {
 fn a_box_twice_as_dense_as_water_sinks_to_the_floor() {
     let mut sim =
         Simulation::new(&pool(BodySpec::new_box([0.4, 0.2], 2000.0, [0.6, 0.3]))).unwrap();
-    while sim.time() < 1.5 {
+    while sim.time() < 1.2 {
         assert_eq!(sim.step().non_finite, 0);
     }
+    // It stays there: it jitters on the trapped water at about 1 cm/s (0.004-0.013 m/s at
+    // 1.5 s depending on the SIMD path's rounding), but moves less than a spacing in 0.3 s,
+    // where a box still sinking at 2 cm/s would move more.
+    let start = sim.rigid_bodies()[0].position;
+    let mut moved = 0.0f32;
+    while sim.time() < 1.5 {
+        assert_eq!(sim.step().non_finite, 0);
+        moved = moved.max((sim.rigid_bodies()[0].position - start).length());
+    }
+    assert!(moved < sim.spacing(), "moved {moved} m in 0.3 s");
     // On the floor: at most the one row of water that a flat bottom traps under it (its
     // particles sit between the box's and the floor's boundary layers, a spacing apart).
     let body = &sim.rigid_bodies()[0];
     let lowest = lowest(body);
     assert!(lowest < 1.1 * sim.spacing(), "lowest point at {lowest} m");
-    assert!(
-        body.velocity.length() < 0.01,
-        "still moving at {}",
-        body.velocity
-    );
     assert_eq!(sim.total_clamped(), 0);
 }
 
