@@ -523,10 +523,11 @@ impl Scene {
                 .sum::<usize>()
     }
 
-    /// Bodies may touch each other and the obstacles but not overlap them (a quarter spacing
-    /// of slack), nor lie within half a spacing of an obstacle's wall particles (the balls of
-    /// radius d/2 that bodies collide with): rapier would push such a body out, through
-    /// whatever lies beyond (the floor). (`Action::AddBody` asks a new body to clear the balls.)
+    /// Bodies may touch each other and the obstacles but not overlap them: a quarter spacing
+    /// of slack, into each other, into a box obstacle, or into the balls of radius d/2 around
+    /// an obstacle's wall particles that bodies collide with (so nearer than d/4 to one of
+    /// them). Rapier would push such a body out, through whatever lies beyond (the floor).
+    /// (`Action::AddBody` asks a new body to clear the balls.)
     fn check_body_overlaps(&self) -> Result<(), SceneError> {
         if self.bodies.is_empty() {
             return Ok(());
@@ -573,8 +574,8 @@ impl Scene {
                     return Err(invalid(
                         key(i),
                         format!(
-                            "the body overlaps obstacles[{k}] (or lies within half a particle \
-                             spacing of its wall); bodies may touch obstacles but not overlap them"
+                            "the body overlaps obstacles[{k}] by more than a quarter particle \
+                             spacing; bodies may touch obstacles but not overlap them"
                         ),
                     ));
                 }
