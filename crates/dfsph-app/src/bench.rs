@@ -384,7 +384,7 @@ pub fn bench(args: BenchArgs) -> Result<(), String> {
             .map_err(|e| format!("cannot write `{}`: {e}", path.display()))?;
         eprintln!(
             "bench: rows written to {}",
-            crate::scene_arg::terminal_safe(&path.display().to_string())
+            dfsph_io::input::terminal_safe(&path.display().to_string())
         );
     }
     if let Some(path) = &args.plot {
@@ -392,7 +392,7 @@ pub fn bench(args: BenchArgs) -> Result<(), String> {
             .map_err(|e| format!("cannot write `{}`: {e}", path.display()))?;
         eprintln!(
             "bench: plot written to {}",
-            crate::scene_arg::terminal_safe(&path.display().to_string())
+            dfsph_io::input::terminal_safe(&path.display().to_string())
         );
     }
     Ok(())

@@ -25,7 +25,6 @@ mod output;
 mod probes_csv;
 mod replay;
 mod run;
-mod scene_arg;
 mod schedule;
 mod stress;
 mod validate;
@@ -38,7 +37,7 @@ use clap::Parser;
 use dfsph::{scene, Simulation};
 
 use cli::{Cli, Command, RunArgs, ValidateArgs, ViewArgs};
-use scene_arg::{load_scene, one_line, terminal_safe};
+use dfsph_io::input::{load_scene, one_line, terminal_safe};
 
 /// A failure with its exit code; printed as one `error: ...` line.
 struct Failure {
@@ -144,7 +143,7 @@ fn view(args: ViewArgs) -> Result<(), Failure> {
     // Before the display is looked for: a FIFO would block the viewer's start, a device
     // would swallow the recording.
     if let Some(path) = &args.record {
-        scene_arg::check_output_file(path, "--record").map_err(Failure::input)?;
+        dfsph_io::input::check_output_file(path, "--record").map_err(Failure::input)?;
     }
     // The viewer's pour budget: room for as much water again.
     let budgeted = dfsph_viewer::app::budgeted_scene(scene.clone(), scene.max_particles);

@@ -11,7 +11,7 @@ use dfsph::simd::SimdPath;
 use dfsph::{Action, Scene, Simulation};
 
 use crate::run::{self, Driver, RunOutcome, RunPlan};
-use crate::scene_arg::{read_input_file, InputRefusal};
+use dfsph_io::input::{read_input_file, InputRefusal};
 
 /// Recordings larger than this are refused, and no more than this is ever read, whatever the
 /// file claims (a long viewer session is a few MB; docs/recording.md).

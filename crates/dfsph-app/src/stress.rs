@@ -16,8 +16,8 @@ use dfsph::rigid::{BodySpec, RigidBodyState};
 use dfsph::{Action, Scene, Simulation, StepStats, Vec2};
 
 use crate::cli::StressArgs;
-use crate::scene_arg::{load_scene, one_line, terminal_safe};
 use crate::Failure;
+use dfsph_io::input::{load_scene, one_line, terminal_safe};
 
 /// The viewer's pour speed, m/s (`dfsph_viewer::input::POUR_SPEED`).
 const POUR_SPEED: f32 = 1.0;
@@ -81,7 +81,7 @@ fn open_recorder(
 ) -> Result<Recorder<BufWriter<File>>, String> {
     // A FIFO would block the open until someone reads it, /dev/null would swallow the
     // recording: only a regular file (or a new one) is written.
-    crate::scene_arg::check_output_file(path, "--record")?;
+    dfsph_io::input::check_output_file(path, "--record")?;
     let source = format!("stress seed={} steps={}", args.seed, args.steps);
     let header = Header::new(source, rayon::current_num_threads(), scene);
     // Opened non-blocking and checked again, in case a FIFO took the file's place meanwhile

@@ -16,6 +16,9 @@
 //! - [`video`]: those frames, stamped with their simulated time, as an animated GIF (pure
 //!   Rust) or an MP4 (through `ffmpeg`), playing at simulated speed.
 //!
+//! - [`input`]: the scene a SCENE argument names (a built-in name or a JSON file), files read
+//!   with a size limit, and the checks on output paths, with one-line messages.
+//!
 //! Snapshots and other whole files are written atomically ([`atomic`]): to `NAME.tmp` in the
 //! same directory, synced, then renamed, so a reader never sees a half-written file. Files that
 //! grow during a run (statistics, the frame index) are appended one complete line at a time
@@ -26,6 +29,7 @@ pub mod atomic;
 pub mod colormap;
 pub mod csv;
 mod font;
+pub mod input;
 pub mod render;
 pub mod stats;
 pub mod video;

@@ -1,4 +1,6 @@
-//! Resolving a SCENE argument: a built-in scene name, or the path of a JSON scene file.
+//! The files a user hands in: a scene (a built-in scene name, or the path of a JSON scene
+//! file) and recordings, read with limits, and the checks on output paths. Shared by the
+//! command line and the Python package, so both say the same thing about the same file.
 //!
 //! Every failure is a one-line message that names the file and the problem (for a scene that
 //! does not validate, the offending key, from [`dfsph::SceneError`]).
