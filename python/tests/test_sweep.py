@@ -1,0 +1,63 @@
+"""dfsph2d.sweep: runs fanned out over Dask give what the same runs give one after another."""
+
+import numpy as np
+import pytest
+
+pytest.importorskip("dask.distributed")
+pytest.importorskip("pandas")
+
+from dask.distributed import Client, LocalCluster  # noqa: E402
+
+from dfsph2d import sweep  # noqa: E402
+
+
+def four_runs():
+    # A resolution pair times two longest steps: 1,250 and 2,222 particles, 0.3 s each.
+    return sweep.grid("dam-break", particle_radius=[0.02, 0.015], time_step__max=[1e-3, 5e-4])
+
+
+def test_grid_labels_every_combination():
+    runs = four_runs()
+    assert len(runs) == 4
+    assert {(r["particle_radius"], r["time_step.max"]) for r in runs} == {
+        (0.02, 1e-3), (0.02, 5e-4), (0.015, 1e-3), (0.015, 5e-4)}
+    for r in runs:
+        assert r["scene"]["particle_radius"] == r["particle_radius"]
+        assert r["scene"]["time_step"]["max"] == r["time_step.max"]
+        assert r["scene"]["time_step"]["cfl"] == 0.4  # the rest of the section is kept
+        # The rest of the built-in scene is kept.
+        assert r["scene"]["tank"] == {"min": [0.0, 0.0], "max": [4.0, 3.0]}
+
+
+def columns(table):
+    return table[["run", "particle_radius", "time_step.max", "time", "front", "max_speed",
+                  "kinetic_energy", "steps"]]
+
+
+def test_a_sweep_on_a_local_cluster_gives_the_serial_fronts():
+    runs = four_runs()
+    serial = sweep.sweep(runs, until=0.3, every=0.1, serial=True)
+    assert len(serial) == 4 * 4  # t = 0, 0.1, 0.2, 0.3 per run
+    assert serial.front.notna().all()
+    # The surge went from the column's 1 m to past 1.5 m in every run.
+    last = serial[serial.time > 0.29]
+    assert (last.front > 1.5).all()
+    # The longest step set the steps taken.
+    steps = serial.groupby("run").steps.first()
+    assert steps[1] > steps[0] and steps[3] > steps[2]
+    # A LocalCluster started by the sweep, and one reached by its address.
+    on_dask = sweep.sweep(runs, until=0.3, every=0.1)
+    assert columns(on_dask).equals(columns(serial))
+    with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None) as cluster:
+        by_address = sweep.sweep(runs, until=0.3, every=0.1, address=cluster.scheduler_address)
+        with Client(cluster) as client:
+            by_client = sweep.sweep(runs, until=0.3, every=0.1, client=client,
+                                    measure=lambda sim: {"n": len(sim), "t2": sim.time ** 2})
+    assert columns(by_address).equals(columns(serial))
+    assert np.allclose(by_client.t2, by_client.time ** 2)
+    assert (by_client.n[by_client.particle_radius == 0.02] == 1250).all()
+
+
+def test_a_run_without_a_scene_is_refused():
+    with pytest.raises(ValueError, match=r"runs\[1\] has no 'scene'"):
+        sweep.sweep([{"scene": "dam-break"}, {"cfl": 1}], until=0.1, serial=True)
