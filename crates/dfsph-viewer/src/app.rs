@@ -65,26 +65,45 @@ struct LoggedAction {
 
 /// `view --record FILE`: the session's actions, each with the number of steps taken before
 /// it, written as they happen (see [`dfsph::recording`]).
+///
+/// Created before the window opens (a path that cannot be written is refused then); the
+/// header, which names the threads the solver steps on, is written once the window has
+/// chosen them ([`ViewerApp::with_recorder`]).
 pub struct SessionRecorder {
     path: PathBuf,
-    recorder: Recorder<std::io::BufWriter<std::fs::File>>,
+    file: std::io::BufWriter<std::fs::File>,
+    /// The scene with the viewer's pour budget, as the simulation will run it.
+    scene: Scene,
 }
 
 impl SessionRecorder {
-    /// Create `path` and write the header for a session on `scene` (with the viewer's pour
-    /// budget, as the simulation will run it).
+    /// Create `path` for a session on `scene`.
     pub fn create(path: &std::path::Path, scene: &Scene) -> anyhow::Result<Self> {
-        let scene = budgeted_scene(scene.clone(), scene.max_particles);
-        let header = Header::new("view", solver_threads(), &scene);
         let file = std::fs::File::create(path)
             .with_context(|| format!("cannot create recording `{}`", path.display()))?;
-        let recorder = Recorder::new(std::io::BufWriter::new(file), &header)
-            .with_context(|| format!("cannot write recording `{}`", path.display()))?;
         Ok(Self {
             path: path.to_path_buf(),
+            file: std::io::BufWriter::new(file),
+            scene: budgeted_scene(scene.clone(), scene.max_particles),
+        })
+    }
+
+    /// Write the header, for a solver stepping on `threads` threads.
+    fn start(self, threads: usize) -> anyhow::Result<ActiveRecorder> {
+        let header = Header::new("view", threads, &self.scene);
+        let recorder = Recorder::new(self.file, &header)
+            .with_context(|| format!("cannot write recording `{}`", self.path.display()))?;
+        Ok(ActiveRecorder {
+            path: self.path,
             recorder,
         })
     }
+}
+
+/// A recording under way.
+struct ActiveRecorder {
+    path: PathBuf,
+    recorder: Recorder<std::io::BufWriter<std::fs::File>>,
 }
 
 /// What a frame showed, for an embedding page's hook (`window.dfsph2d.state()`).
@@ -108,14 +127,6 @@ pub struct FrameReport {
 
 /// A frame observer ([`ViewerApp::on_frame`]).
 type FrameObserver = Box<dyn FnMut(&FrameReport)>;
-
-/// Threads the solver steps on: rayon's pool, or the page's one thread in the browser.
-fn solver_threads() -> usize {
-    #[cfg(not(target_arch = "wasm32"))]
-    return rayon::current_num_threads();
-    #[cfg(target_arch = "wasm32")]
-    return 1;
-}
 
 /// The viewer.
 pub struct ViewerApp {
@@ -167,7 +178,7 @@ pub struct ViewerApp {
     log: Vec<LoggedAction>,
     /// Steps taken since the window opened, resets included (the recording's clock).
     session_steps: u64,
-    recorder: Option<SessionRecorder>,
+    recorder: Option<ActiveRecorder>,
     /// The Record button's video.
     video: VideoRecorder,
     /// Told what each frame showed ([`Self::on_frame`]).
@@ -183,14 +194,30 @@ impl ViewerApp {
         opts: ViewerOptions,
         failures: Failures,
     ) -> anyhow::Result<Self> {
-        Self::with_context(&cc.egui_ctx, opts, failures)
+        // Under a software rasteriser the drawing takes cores the solver would otherwise use
+        // (`crate::threads`).
+        #[cfg(not(target_arch = "wasm32"))]
+        let threads = {
+            use eframe::glow::HasContext;
+            let software = cc.gl.as_ref().is_some_and(|gl| {
+                // SAFETY: a string query on the context eframe just made current.
+                let renderer = unsafe { gl.get_parameter_string(eframe::glow::RENDERER) };
+                crate::threads::is_software_renderer(&renderer)
+            });
+            crate::threads::solver_threads(crate::threads::cores(), software)
+        };
+        #[cfg(target_arch = "wasm32")]
+        let threads = None;
+        Self::with_context(&cc.egui_ctx, opts, failures, threads)
     }
 
-    /// [`Self::new`] given only the egui context (tests drive the app without a window).
+    /// [`Self::new`] given only the egui context (tests drive the app without a window), the
+    /// steps on `threads` threads of their own (`None`: rayon's pool).
     pub(crate) fn with_context(
         ctx: &egui::Context,
         opts: ViewerOptions,
         failures: Failures,
+        threads: Option<usize>,
     ) -> anyhow::Result<Self> {
         // Dark whatever the system prefers (a browser reports its theme and egui would follow).
         ctx.set_theme(egui::Theme::Dark);
@@ -208,7 +235,7 @@ impl ViewerApp {
         Ok(Self {
             mapper: InputMapper::new(sim.gravity(), 2.0 * sim.particle_radius()),
             radius_edit: sim.scene().particle_radius,
-            sim: Stepper::new(sim),
+            sim: Stepper::with_threads(sim, threads),
             requested_max_particles,
             loaded,
             opener: SceneOpener::default(),
@@ -265,10 +292,15 @@ impl ViewerApp {
 
     /// Record the session into `recorder` (`view --record`).
     pub fn with_recorder(mut self, recorder: Option<SessionRecorder>) -> Self {
-        if let Some(r) = &recorder {
-            self.set_status(format!("recording to {}", r.path.display()));
+        if let Some(r) = recorder {
+            match r.start(self.sim.threads()) {
+                Ok(r) => {
+                    self.set_status(format!("recording to {}", r.path.display()));
+                    self.recorder = Some(r);
+                }
+                Err(e) => self.fail(e),
+            }
         }
-        self.recorder = recorder;
         self
     }
 

@@ -12,7 +12,7 @@ fn coarse(name: &str) -> Scene {
 fn app(scene: Scene) -> (egui::Context, ViewerApp) {
     let ctx = egui::Context::default();
     let failures: Failures = Rc::new(RefCell::new(Vec::new()));
-    let app = ViewerApp::with_context(&ctx, ViewerOptions::new(scene), failures).unwrap();
+    let app = ViewerApp::with_context(&ctx, ViewerOptions::new(scene), failures, None).unwrap();
     (ctx, app)
 }
 
@@ -351,4 +351,27 @@ fn a_recorded_session_with_bodies_replays_to_the_same_fingerprint() {
     assert_eq!(dfsph::recording::fingerprint_hex(&sim), end.fingerprint);
     assert_eq!(end.fingerprint, dfsph::recording::fingerprint_hex(&app.sim));
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_steps_run_on_the_threads_chosen_and_a_recording_names_them() {
+    let dir = std::env::temp_dir().join(format!("dfsph-viewer-threads-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for threads in [1, 3] {
+        let path = dir.join(format!("session-{threads}.jsonl"));
+        let scene = coarse("dam-break");
+        let recorder = SessionRecorder::create(&path, &scene).unwrap();
+        let ctx = egui::Context::default();
+        let failures: Failures = Rc::new(RefCell::new(Vec::new()));
+        let app = ViewerApp::with_context(&ctx, ViewerOptions::new(scene), failures, Some(threads))
+            .unwrap()
+            .with_recorder(Some(recorder));
+        assert_eq!(app.sim.threads(), threads);
+        let header = std::fs::read_to_string(&path).unwrap();
+        let header: dfsph::recording::Header =
+            serde_json::from_str(header.lines().next().unwrap()).unwrap();
+        assert_eq!(header.threads, threads);
+        assert_eq!(header.source, "view");
+    }
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -26,6 +26,8 @@ pub mod render;
 pub mod scene_file;
 pub mod share;
 pub mod stepper;
+#[cfg(not(target_arch = "wasm32"))]
+pub mod threads;
 pub mod video;
 pub mod view;
 #[cfg(target_arch = "wasm32")]

@@ -117,6 +117,8 @@ pub struct Away {
 #[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 pub struct Stepper {
     home: Option<Box<Simulation>>,
+    /// Worker threads the steps run on.
+    threads: usize,
     /// Jobs for the stepping thread (native; the page spawns a pool task per job instead).
     #[cfg(not(target_arch = "wasm32"))]
     jobs: Option<mpsc::Sender<Job>>,
@@ -140,10 +142,33 @@ pub struct Stepper {
 
 #[cfg(any(not(target_arch = "wasm32"), feature = "threads"))]
 impl Stepper {
-    /// Start the stepping thread (native), with `sim` at home.
+    /// Start the stepping thread (native), with `sim` at home, stepping on rayon's pool.
     pub fn new(sim: Simulation) -> Self {
+        Self::with_threads(sim, None)
+    }
+
+    /// [`Self::new`], the steps run on a pool of their own of `threads` workers (native;
+    /// `None`, or a pool that cannot start: rayon's global pool). Steps give the same bits on
+    /// any thread count; this only shares the cores with the drawing ([`crate::threads`]).
+    pub fn with_threads(sim: Simulation, threads: Option<usize>) -> Self {
         let (outbox, returns) = mpsc::channel();
         let stop = Arc::new(AtomicBool::new(false));
+        #[cfg(not(target_arch = "wasm32"))]
+        let pool = threads.and_then(|n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .thread_name(|i| format!("dfsph2d-solver-{i}"))
+                .build()
+                .ok()
+        });
+        #[cfg(target_arch = "wasm32")]
+        let _ = threads;
+        #[cfg(not(target_arch = "wasm32"))]
+        let threads = pool
+            .as_ref()
+            .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
+        #[cfg(target_arch = "wasm32")]
+        let threads = rayon::current_num_threads();
         #[cfg(not(target_arch = "wasm32"))]
         let (jobs, worker) = {
             let (jobs, inbox) = mpsc::channel::<Job>();
@@ -152,7 +177,11 @@ impl Stepper {
                 .name("dfsph2d-stepping".into())
                 .spawn(move || {
                     for job in inbox {
-                        if outbox.send(step_paced(job, &stop_flag)).is_err() {
+                        let back = match &pool {
+                            Some(pool) => pool.install(|| step_paced(job, &stop_flag)),
+                            None => step_paced(job, &stop_flag),
+                        };
+                        if outbox.send(back).is_err() {
                             break;
                         }
                     }
@@ -162,6 +191,7 @@ impl Stepper {
         };
         Self {
             home: Some(Box::new(sim)),
+            threads,
             #[cfg(not(target_arch = "wasm32"))]
             jobs: Some(jobs),
             #[cfg(target_arch = "wasm32")]
@@ -177,6 +207,11 @@ impl Stepper {
             #[cfg(target_arch = "wasm32")]
             last_away: None,
         }
+    }
+
+    /// Worker threads the steps run on.
+    pub fn threads(&self) -> usize {
+        self.threads
     }
 
     /// Replace the simulation (a reset or another scene); the pacing starts afresh.
@@ -396,6 +431,16 @@ impl FrameStepper {
             pacer: Pacer::default(),
             time_scale: 1.0,
         }
+    }
+
+    /// [`Self::new`]: the page steps on its one thread whatever is asked.
+    pub fn with_threads(sim: Simulation, _threads: Option<usize>) -> Self {
+        Self::new(sim)
+    }
+
+    /// Worker threads the steps run on: the page's one.
+    pub fn threads(&self) -> usize {
+        1
     }
 
     /// Replace the simulation (a reset or another scene); the pacing starts afresh.

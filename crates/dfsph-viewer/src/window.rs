@@ -41,6 +41,7 @@ fn window_failure(what: &str, cause: &str) -> anyhow::Error {
 /// `save_on_exit` files could not be written.
 pub fn run(opts: ViewerOptions) -> anyhow::Result<()> {
     check_display()?;
+    crate::threads::limit_software_rasteriser();
     // Validate before opening a window, for a clear message.
     opts.scene
         .validate()
