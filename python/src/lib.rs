@@ -151,6 +151,47 @@ impl PySimulation {
         accepted(what, outcome)
     }
 
+    /// Step while `more(sim)` says so, with the GIL released, back in Python every
+    /// [`SIGNAL_CHECK`] for Ctrl-C; returns the last step's diagnostics. A step that does not
+    /// move the clock on (a non-finite or zero Δt) ends it with `RuntimeError`: the loop
+    /// would never end.
+    fn step_while<'py>(
+        &self,
+        py: Python<'py>,
+        mut more: impl FnMut(&Simulation) -> bool + Send,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let mut guard = self.lock();
+        let state: &mut State = &mut guard;
+        loop {
+            let (done, stuck) = py.detach(|| {
+                state.in_pool(|sim| {
+                    let start = Instant::now();
+                    while start.elapsed() < SIGNAL_CHECK {
+                        if !more(sim) {
+                            return (true, false);
+                        }
+                        let dt = sim.step().dt;
+                        if !(dt.is_finite() && dt > 0.0) {
+                            return (true, true);
+                        }
+                    }
+                    (false, false)
+                })
+            });
+            if stuck {
+                return Err(PyRuntimeError::new_err(format!(
+                    "the simulation stopped advancing at t = {} s (a step of {} s)",
+                    state.sim.time(),
+                    state.sim.stats().dt
+                )));
+            }
+            if done {
+                return to_python(py, state.sim.stats());
+            }
+            py.check_signals()?;
+        }
+    }
+
     /// Per-particle values in id order.
     fn by_id<T: Copy>(&self, pick: impl Fn(&Simulation) -> Vec<T>) -> Vec<T> {
         let state = self.lock();
@@ -195,17 +236,12 @@ impl PySimulation {
     /// Take `n` steps; returns the last one's diagnostics.
     #[pyo3(signature = (n = 1))]
     fn step<'py>(&self, py: Python<'py>, n: u64) -> PyResult<Bound<'py, PyAny>> {
-        let mut guard = self.lock();
-        let state: &mut State = &mut guard;
-        let stats = py.detach(|| {
-            state.in_pool(|sim| {
-                for _ in 0..n {
-                    sim.step();
-                }
-                *sim.stats()
-            })
-        });
-        to_python(py, &stats)
+        let mut left = n;
+        self.step_while(py, |_| {
+            let go = left > 0;
+            left = left.saturating_sub(1);
+            go
+        })
     }
 
     /// Step until `seconds` more have been simulated; returns the last step's diagnostics.
@@ -215,21 +251,8 @@ impl PySimulation {
                 "seconds must be a finite number >= 0, not {seconds}"
             )));
         }
-        let mut guard = self.lock();
-        let state: &mut State = &mut guard;
-        let until = state.sim.time() + seconds;
-        while state.sim.time() < until {
-            py.detach(|| {
-                state.in_pool(|sim| {
-                    let start = Instant::now();
-                    while sim.time() < until && start.elapsed() < SIGNAL_CHECK {
-                        sim.step();
-                    }
-                })
-            });
-            py.check_signals()?;
-        }
-        to_python(py, state.sim.stats())
+        let until = self.lock().sim.time() + seconds;
+        self.step_while(py, |sim| sim.time() < until)
     }
 
     /// Simulated time, s.
