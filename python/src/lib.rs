@@ -13,12 +13,14 @@
 //! thread count, and a long `advance` returns to Python every [`SIGNAL_CHECK`] to let Ctrl-C
 //! (`KeyboardInterrupt`) through.
 
+use std::borrow::Cow;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use dfsph::actions::ActionOutcome;
 use dfsph::rigid::BodySpec;
-use dfsph::{probes, Action, Scene, Simulation, Vec2};
+use dfsph::{probes, Action, Scene, SceneError, Simulation, Vec2};
+use dfsph_io::input::one_line;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
@@ -82,8 +84,7 @@ fn scene_from(py: Python<'_>, scene: &Bound<'_, PyAny>) -> PyResult<Scene> {
                 PyValueError::new_err(format!("scene: the dict is not JSON-serialisable: {e}"))
             })?
             .extract()?;
-        return Scene::from_json(&text)
-            .map_err(|e| PyValueError::new_err(format!("scene: {}", one_line(&e.to_string()))));
+        return Scene::from_json(&text).map_err(scene_error);
     }
     let arg: String = if scene.is_instance_of::<PyString>() {
         scene.extract()?
@@ -101,8 +102,9 @@ fn scene_from(py: Python<'_>, scene: &Bound<'_, PyAny>) -> PyResult<Scene> {
     dfsph_io::input::load_scene(&arg).map_err(PyValueError::new_err)
 }
 
-fn one_line(s: &str) -> String {
-    dfsph_io::input::one_line(s)
+/// A scene the solver refuses, as `ValueError` in the command line's words.
+fn scene_error(e: SceneError) -> PyErr {
+    PyValueError::new_err(format!("scene: {}", one_line(&e.to_string())))
 }
 
 /// A JSON-serialisable value as the Python object `json.loads` makes of it.
@@ -192,8 +194,8 @@ impl PySimulation {
         }
     }
 
-    /// Per-particle values in id order.
-    fn by_id<T: Copy>(&self, pick: impl Fn(&Simulation) -> Vec<T>) -> Vec<T> {
+    /// Per-particle values (the solver's order) rearranged into id order.
+    fn by_id<T: Copy>(&self, pick: impl for<'a> FnOnce(&'a Simulation) -> Cow<'a, [T]>) -> Vec<T> {
         let state = self.lock();
         let values = pick(&state.sim);
         state.id_order().into_iter().map(|i| values[i]).collect()
@@ -227,7 +229,7 @@ impl PySimulation {
                 Some(pool) => pool.install(|| Simulation::new(&scene)),
                 None => Simulation::new(&scene),
             })
-            .map_err(|e| PyValueError::new_err(format!("scene: {}", one_line(&e.to_string()))))?;
+            .map_err(scene_error)?;
         Ok(Self {
             state: Mutex::new(State { sim, pool }),
         })
@@ -320,19 +322,19 @@ impl PySimulation {
     /// Particle ids, uint32 (N,).
     #[getter]
     fn ids<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u32>> {
-        self.by_id(|s| s.ids().to_vec()).into_pyarray(py)
+        self.by_id(|s| Cow::Borrowed(s.ids())).into_pyarray(py)
     }
 
     /// Positions, m, float32 (N, 2).
     #[getter]
     fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f32>> {
-        points_array(py, self.by_id(|s| s.positions().to_vec()))
+        points_array(py, self.by_id(|s| Cow::Borrowed(s.positions())))
     }
 
     /// Velocities, m/s, float32 (N, 2).
     #[getter]
     fn velocities<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f32>> {
-        points_array(py, self.by_id(|s| s.velocities().to_vec()))
+        points_array(py, self.by_id(|s| Cow::Borrowed(s.velocities())))
     }
 
     /// Densities, kg/m³, float32 (N,).
@@ -340,7 +342,7 @@ impl PySimulation {
     fn densities<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
         self.by_id(|s| {
             let rho0 = s.rest_density();
-            s.density_ratios().iter().map(|r| r * rho0).collect()
+            Cow::Owned(s.density_ratios().iter().map(|r| r * rho0).collect())
         })
         .into_pyarray(py)
     }
@@ -350,10 +352,12 @@ impl PySimulation {
     fn pressures<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
         self.by_id(|s| {
             let rho0 = s.rest_density();
-            s.interpolated_pressures_over_rho0()
-                .into_iter()
-                .map(|p| p * rho0)
-                .collect()
+            Cow::Owned(
+                s.interpolated_pressures_over_rho0()
+                    .into_iter()
+                    .map(|p| p * rho0)
+                    .collect(),
+            )
         })
         .into_pyarray(py)
     }
