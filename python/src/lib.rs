@@ -116,7 +116,10 @@ fn to_python<'py>(py: Python<'py>, value: &impl serde::Serialize) -> PyResult<Bo
 /// `values` as a float32 array of shape (N, 2).
 fn points_array<'py>(py: Python<'py>, values: Vec<Vec2>) -> Bound<'py, PyArray2<f32>> {
     let n = values.len();
-    let flat: Vec<f32> = values.into_iter().flat_map(|v| [v.x, v.y]).collect();
+    let mut flat = Vec::with_capacity(2 * n);
+    for v in values {
+        flat.extend_from_slice(&[v.x, v.y]);
+    }
     Array2::from_shape_vec((n, 2), flat)
         .expect("two values per point")
         .into_pyarray(py)
