@@ -161,14 +161,12 @@ impl Stepper {
                 .build()
                 .ok()
         });
+        // The threaded page steps on rayon's pool of Web Workers whatever is asked.
         #[cfg(target_arch = "wasm32")]
-        let _ = threads;
-        #[cfg(not(target_arch = "wasm32"))]
+        let pool: Option<rayon::ThreadPool> = threads.and(None);
         let threads = pool
             .as_ref()
             .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
-        #[cfg(target_arch = "wasm32")]
-        let threads = rayon::current_num_threads();
         #[cfg(not(target_arch = "wasm32"))]
         let (jobs, worker) = {
             let (jobs, inbox) = mpsc::channel::<Job>();
