@@ -240,6 +240,7 @@ fn passes(c: &mut Criterion) {
                     settings: &settings,
                     nb,
                     boundary: &s.boundary,
+                    bodies: None,
                 };
                 let mut scratch = JacobiScratch::default();
                 g.bench_function(BenchmarkId::new(format!("{label}{suffix}"), name), |b| {

@@ -16,7 +16,7 @@ use crate::particles::{BoundaryParticles, FluidParticles, Scratch};
 use crate::pressure::{self, PressureSolver, SolveReport};
 use crate::retry::{AttemptCheck, Attempts, DensityStep};
 use crate::rigid::coupling::{self, WallTerms};
-use crate::rigid::{BodySpec, RigidBodies, RigidBodyState};
+use crate::rigid::{BodySpec, BodyVelocity, CoupledBodies, RigidBodies, RigidBodyState};
 use crate::scene::{Method, Obstacle, Packing, PressureSolve, Scene, SceneError};
 use crate::settings::SolverSettings;
 use crate::solver::{self, Neighborhood, PairCache, Walls};
@@ -66,6 +66,17 @@ pub struct StepStats {
     /// non-finite velocity, or a particle about to jump more than a particle spacing). When
     /// every try is unsound the least bad is taken (`retry`). `dt` is the one finally taken.
     pub retries: u32,
+}
+
+/// Which of a step's terms [`Simulation::rigid_body_impulses`] sums.
+#[derive(Clone, Copy, Debug)]
+enum Solves {
+    /// The divergence solve's.
+    Divergence,
+    /// The mirrored walls' hydrostatic ghosts' (part of the non-pressure forces).
+    Ghosts,
+    /// Both solves' and the ghosts'.
+    Both,
 }
 
 /// The state of one running scene.
@@ -140,6 +151,11 @@ pub struct Simulation {
     /// The obstacles or drawn walls changed since the rigid bodies were last told where they
     /// are ([`RigidBodies::set_walls`]).
     pub(crate) walls_moved_for_bodies: bool,
+    /// The free rigid bodies the water touches in this step, which move inside its solves
+    /// ([`crate::rigid::coupled`]), and the walls' share of the density rate at their
+    /// velocities as the step began.
+    coupled: Option<CoupledBodies>,
+    wall_flux_at_start: Vec<f32>,
 }
 
 /// Particle data in creation order, for output.
@@ -216,6 +232,8 @@ impl Simulation {
             rigid: None,
             last_body_change: (0, 0),
             walls_moved_for_bodies: true,
+            coupled: None,
+            wall_flux_at_start: Vec::new(),
         };
         let mut samples = BoundarySamples::default();
         if hexagonal {
@@ -465,6 +483,7 @@ impl Simulation {
             settings: &self.settings,
             nb: Neighborhood::new(&self.fluid_lists, &self.boundary_lists, &self.pair_cache),
             boundary: &self.boundary,
+            bodies: self.coupled.as_ref().filter(|c| !c.is_empty()),
         };
         (step, &mut self.fluid, self.pressure.as_mut())
     }
@@ -506,6 +525,7 @@ impl Simulation {
         // compute the densities ρ_i and the factors α_i.
         self.update_body_motion();
         self.update_neighborhoods();
+        self.couple_rigid_bodies();
         // Line 14, Algorithm 2: make the velocity field divergence-free, its error measured
         // over the previous step.
         let divergence = if self.settings.divergence_solve {
@@ -514,14 +534,18 @@ impl Simulation {
         } else {
             SolveReport::default()
         };
+        // What the divergence solve gave the free rigid bodies.
+        let last_dt = self.last_dt;
+        let after_divergence = self.rigid_velocity_change(last_dt, Solves::Divergence);
         // Line 7: Δt from the CFL condition and the stability bounds, no longer than a
         // recent retry allows.
         let cfl_dt = self.cfl_time_step();
         // Lines 6, 8 and 9, Algorithm 3: non-pressure forces, predicted velocities and the
         // density solve, redone with half the Δt while the step is unsound.
-        let density = self.density_solve_until_sound(cfl_dt.min(self.retry_dt_limit));
+        let density =
+            self.density_solve_until_sound(cfl_dt.min(self.retry_dt_limit), &after_divergence);
         // The rigid bodies take what their walls gave the fluid in both solves, and move.
-        let impulses = self.rigid_body_impulses(density.dt);
+        let impulses = self.rigid_body_impulses(density.dt, Solves::Both);
         self.move_rigid_bodies(density.dt, &impulses);
         // Line 10: advect (and move the walls); put back what left the tank or entered a
         // body.
@@ -535,7 +559,15 @@ impl Simulation {
     /// predicted velocities and the density solve. An unsound attempt is redone from the
     /// divergence-free velocities with a shorter Δt ([`Attempts`]); the attempt taken is
     /// returned.
-    fn density_solve_until_sound(&mut self, dt: f32) -> DensityStep {
+    ///
+    /// `after_divergence` is what the divergence solve gave each free rigid body: with it,
+    /// gravity and the walls' ghosts, the density solve starts from the bodies' predicted
+    /// velocities, as the water's.
+    fn density_solve_until_sound(
+        &mut self,
+        dt: f32,
+        after_divergence: &[BodyVelocity],
+    ) -> DensityStep {
         let mut attempts = Attempts::new(dt, self.scene.time_step.min as f32);
         self.retry_velocity.clone_from(&self.fluid.velocity);
         self.retry_pressure
@@ -543,6 +575,7 @@ impl Simulation {
         loop {
             let dt = attempts.dt;
             self.predict_velocities(dt);
+            self.predict_rigid_bodies(dt, after_divergence);
             let (step, fluid, pressure) = self.step_parts(dt);
             let report = pressure.density_solve(&step, fluid);
             if attempts.is_last()
@@ -813,9 +846,77 @@ impl Simulation {
             });
     }
 
-    /// The impulse the fluid gave each rigid body in the step of `dt` just solved, with its
+    /// Find which fluid particles touch which free rigid body, so that the bodies move inside
+    /// the solves ([`crate::rigid::coupled`]), and lower those particles' factors to match.
+    fn couple_rigid_bodies(&mut self) {
+        let Some(rigid) = &self.rigid else {
+            self.coupled = None;
+            return;
+        };
+        let mobility: Vec<_> = (0..rigid.len()).map(|k| rigid.mobility(k)).collect();
+        let (bodies, boundary) = (&self.bodies, &self.boundary);
+        let (lists, grads) = (&self.boundary_lists, &self.pair_cache.boundary_grad);
+        let coupled = CoupledBodies::new(
+            self.fluid.len(),
+            |i| (lists.of(i), &grads[lists.range(i)]),
+            |b| bodies[boundary.body[b] as usize].rigid,
+            &boundary.position,
+            &boundary.volume,
+            &mobility,
+            self.particle_mass(),
+            self.pressure.walls().gradient_weight(),
+        );
+        coupled.damp_factors(&mut self.fluid.factor);
+        self.wall_flux_at_start
+            .clone_from(&self.pair_cache.wall_flux);
+        self.coupled = Some(coupled);
+    }
+
+    /// Line 8 of Algorithm 1 for the free rigid bodies: their velocities as the density solve
+    /// of a step of `dt` starts, after the divergence solve (`after_divergence`), gravity and
+    /// the walls' ghosts, given to the solve through the walls' share of the density rate.
+    fn predict_rigid_bodies(&mut self, dt: f32, after_divergence: &[BodyVelocity]) {
+        let (Some(rigid), Some(_)) = (&self.rigid, &self.coupled) else {
+            return;
+        };
+        let mut moved = rigid.gravity_velocity_change(self.gravity, dt);
+        let ghosts = self.rigid_velocity_change(dt, Solves::Ghosts);
+        for ((m, &a), g) in moved.iter_mut().zip(after_divergence).zip(ghosts) {
+            *m += a;
+            *m += g;
+        }
+        let Some(coupled) = &self.coupled else {
+            return;
+        };
+        let flux = &mut self.pair_cache.wall_flux;
+        flux.clone_from(&self.wall_flux_at_start);
+        let n = flux.len();
+        coupled.add_flux(flux, 0..n, &moved, 1.0);
+    }
+
+    /// The velocity change of each free rigid body from what the walls gave the fluid in
+    /// `solves` of the step of `dt` (zero for bodies held by joints and without bodies).
+    fn rigid_velocity_change(&mut self, dt: f32, solves: Solves) -> Vec<BodyVelocity> {
+        let impulses = self.rigid_body_impulses(dt, solves);
+        let Some(rigid) = &self.rigid else {
+            return Vec::new();
+        };
+        impulses
+            .iter()
+            .enumerate()
+            .map(|(k, j)| {
+                let mobile = rigid.mobility(k);
+                BodyVelocity {
+                    linear: mobile.inverse_mass * j.linear,
+                    angular: mobile.inverse_inertia * j.angular,
+                }
+            })
+            .collect()
+    }
+
+    /// The impulse the fluid gave each rigid body in `solves` of the step of `dt`, with its
     /// moment about the body's centre of mass ([`coupling`]).
-    fn rigid_body_impulses(&mut self, dt: f32) -> Vec<coupling::BodyImpulse> {
+    fn rigid_body_impulses(&mut self, dt: f32, solves: Solves) -> Vec<coupling::BodyImpulse> {
         let Some(rigid) = &self.rigid else {
             return Vec::new();
         };
@@ -829,14 +930,17 @@ impl Simulation {
         let pressure_to_kappa = dt * self.pressure.pressure_force_scale();
         let (step, fluid, _) = self.step_parts(dt);
         // Scenes with bodies run DFSPH (`Scene::validate`), whose solves apply these terms.
+        let (divergence, density, ghosts) = match solves {
+            Solves::Divergence => (true, false, false),
+            Solves::Ghosts => (false, false, true),
+            Solves::Both => (true, true, true),
+        };
         let terms = WallTerms {
-            divergence_stiffness: step
-                .settings
-                .divergence_solve
+            divergence_stiffness: (divergence && step.settings.divergence_solve)
                 .then_some(&fluid.divergence_stiffness[..]),
-            pressure_to_kappa,
+            pressure_to_kappa: if density { pressure_to_kappa } else { 0.0 },
             weight,
-            ghost_slope,
+            ghost_slope: ghost_slope.filter(|_| ghosts),
         };
         coupling::body_impulses(&step, fluid, &terms, mass, &rigid_of, &centres)
     }

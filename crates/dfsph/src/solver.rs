@@ -373,6 +373,7 @@ mod tests {
                 settings: &self.settings,
                 nb,
                 boundary: &self.boundary,
+                bodies: None,
             }
         }
     }

@@ -5,6 +5,7 @@ use glam::Vec2;
 
 use crate::kernel::CubicSpline;
 use crate::particles::BoundaryParticles;
+use crate::rigid::CoupledBodies;
 use crate::settings::SolverSettings;
 use crate::solver::Neighborhood;
 
@@ -32,4 +33,8 @@ pub struct StepContext<'a> {
     pub nb: Neighborhood<'a>,
     /// The wall particles.
     pub boundary: &'a BoundaryParticles,
+    /// The free rigid bodies the water touches, which move inside the solves; `None` without
+    /// bodies. `nb.wall_flux` is the walls' share of the density rate at the bodies'
+    /// velocities as the solve at hand starts.
+    pub bodies: Option<&'a CoupledBodies>,
 }

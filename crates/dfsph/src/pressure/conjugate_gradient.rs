@@ -139,6 +139,8 @@ struct CgScratch {
     unused: Vec<f32>,
     /// Rates at the current velocities.
     pub rate: Vec<f32>,
+    /// The walls' share of the rates after the warm start moved the rigid bodies.
+    flux: Vec<f32>,
 }
 
 /// `y_i += a·x_i`: a step of `a` along a search direction, for stiffnesses, velocities and
@@ -205,11 +207,28 @@ fn density_solve(
             };
         });
     apply_pressure(volume, &total, &mut fluid.velocity, nb);
+    // The free rigid bodies move with the water (`crate::rigid::coupled`): the warm start
+    // pushes them, and each search direction's velocity change carries theirs, so that the
+    // system solved is the one of water and bodies together.
+    let wall_flux = match step.bodies {
+        Some(bodies) => {
+            scratch.flux.clear();
+            scratch.flux.extend_from_slice(nb.wall_flux);
+            bodies.add_flux(
+                &mut scratch.flux,
+                0..n,
+                &bodies.velocity_change(&total),
+                1.0,
+            );
+            &scratch.flux[..]
+        }
+        None => nb.wall_flux,
+    };
     density_rates_into(
         volume,
         &fluid.velocity,
         nb,
-        nb.wall_flux,
+        wall_flux,
         &scratch.zeros,
         &mut scratch.unused,
         &mut scratch.rate,
@@ -274,6 +293,10 @@ fn density_solve(
             &mut scratch.unused,
             &mut scratch.dir_rate,
         );
+        if let Some(bodies) = step.bodies {
+            let moved = bodies.velocity_change(&scratch.direction);
+            bodies.add_flux(&mut scratch.dir_rate, 0..n, &moved, -1.0);
+        }
         let pq = -(dt as f64) * dot3(&scratch.direction, &scratch.dir_rate, &scratch.active);
         if pq <= 0.0 || !pq.is_finite() {
             break;

@@ -18,6 +18,7 @@ use super::{PressureSolver, SolveReport};
 use crate::blocked::{ResidualTerms, LANES};
 use crate::particles::FluidParticles;
 use crate::reduce;
+use crate::rigid::{BodyVelocity, CoupledBodies};
 use crate::settings::SolveLimits;
 use crate::step::StepContext;
 use glam::Vec2;
@@ -108,6 +109,9 @@ pub struct JacobiScratch {
     /// Per particle, the stiffness the solve may start from (the warm start), applied only
     /// where the particle is compressed before it ([`Sweeps::warm_start`]).
     warm: Vec<f32>,
+    /// Per particle, the walls' share of the density rate as the rigid bodies move in the
+    /// solve ([`crate::rigid::coupled`]); unused without bodies.
+    flux: Vec<f32>,
 }
 
 impl JacobiScratch {
@@ -158,10 +162,17 @@ fn jacobi_solve(
         return SolveReport::default();
     }
     let mut part_sums = [(0.0, 0.0); reduce::MAX_PARTS];
+    if step.bodies.is_some() {
+        scratch.flux.clear();
+        scratch.flux.extend_from_slice(step.nb.wall_flux);
+    }
     let sweeps = Sweeps::new(step, problem, fluid, scratch, total, &mut part_sums);
 
     let outcomes = lockstep::run(|team| {
         let mine = sweeps.share(team);
+        // The bodies' velocity change since the solve began: every member keeps its own
+        // copy, summed from the same increments in the same order.
+        let mut moved = Moved::new(step.bodies);
         // The buffer the next increments are written into, and the one holding the rates at
         // the velocities as they are.
         let (mut next, mut rates_now) = (0, 0);
@@ -171,14 +182,14 @@ fn jacobi_solve(
                 sweeps.residuals(team, &mine, next);
             }
             sweeps.warm_start(team, &mine, next, problem.gated_warm_start);
-            sweeps.apply(team, &mine, next);
+            sweeps.apply(team, &mine, next, &mut moved);
             next = 1 - next;
             rates_now = next;
         }
         let (mut avg, mut max) = sweeps.residuals(team, &mine, next);
         let mut iterations = 0;
         while limits.unmet(avg, max, iterations) {
-            sweeps.apply(team, &mine, next);
+            sweeps.apply(team, &mine, next, &mut moved);
             next = 1 - next;
             rates_now = next;
             let previous = (avg, max);
@@ -188,7 +199,7 @@ fn jacobi_solve(
                 // Jacobi is not guaranteed to converge (dense clusters, e.g. fluid pulled
                 // into a point): an iteration that makes the error grow is taken back and
                 // the solve stops, rather than feeding the growth into the velocities.
-                sweeps.take_back(team, &mine, 1 - next);
+                sweeps.take_back(team, &mine, 1 - next, &mut moved);
                 // The velocities are back where the previous pass read them.
                 rates_now = 1 - next;
                 (avg, max) = previous;
@@ -234,6 +245,12 @@ struct Sweeps<'a> {
     rates: [Shared<'a, f32>; 2],
     /// The warm-start stiffness of each particle ([`JacobiScratch::warm`]).
     warm: &'a [f32],
+    /// The free rigid bodies, which move with each increment ([`crate::rigid::coupled`]).
+    bodies: Option<&'a CoupledBodies>,
+    /// The walls' share of the density rate as the solve began, and, with bodies, as they
+    /// have moved since ([`JacobiScratch::flux`]).
+    base_flux: &'a [f32],
+    flux: Shared<'a, f32>,
     /// Per part, the (sum, max) of its residuals: the residual sum decides when to stop, so
     /// it is taken in an order that does not depend on the work split (`reduce`), per part,
     /// then the parts in order.
@@ -280,6 +297,9 @@ impl<'a> Sweeps<'a> {
                 Shared::new(&mut scratch.previous_rate),
             ],
             warm: &scratch.warm,
+            bodies: step.bodies,
+            base_flux: step.nb.wall_flux,
+            flux: Shared::new(&mut scratch.flux),
             part_sums: Shared::new(&mut part_sums[..parts]),
         }
     }
@@ -306,9 +326,17 @@ impl<'a> Sweeps<'a> {
     /// barrier, the average and largest residual over all parts, in percent (every member
     /// takes the same sum in the same order, so all decide alike).
     fn residuals(&self, team: &Team, mine: &Range<usize>, buffer: usize) -> (f64, f64) {
-        // SAFETY: in this pass the velocities are only read; each part's items and sum are
-        // written by the one member that took the part; the barrier below ends the pass.
+        // SAFETY: in this pass the velocities and the wall flux are only read; each part's
+        // items and sum are written by the one member that took the part; the barrier below
+        // ends the pass.
         let vel = unsafe { self.velocity.read() };
+        let terms = ResidualTerms {
+            wall_flux: match self.bodies {
+                Some(_) => unsafe { self.flux.read() },
+                None => self.base_flux,
+            },
+            ..self.terms
+        };
         for p in team.parts(mine.clone()) {
             let (part_blocks, items) = self.part(p);
             let (d, r, sum) = unsafe {
@@ -327,14 +355,10 @@ impl<'a> Sweeps<'a> {
                 let count = d.len().div_ceil(LANES);
                 let first = part_blocks.start + g * GROUP;
                 let e = &mut errors[..count];
-                self.step.nb.blocks.residual_blocks(
-                    first..first + count,
-                    vel,
-                    &self.terms,
-                    d,
-                    r,
-                    e,
-                );
+                self.step
+                    .nb
+                    .blocks
+                    .residual_blocks(first..first + count, vel, &terms, d, r, e);
                 acc = reduce::fold_block_sums(acc, &errors, count);
             }
             *sum = acc;
@@ -379,8 +403,10 @@ impl<'a> Sweeps<'a> {
     }
 
     /// Apply the increments in `increments[buffer]` to the velocities and add them to the
-    /// running totals, part by part.
-    fn apply(&self, team: &Team, mine: &Range<usize>, buffer: usize) {
+    /// running totals, part by part; then, with rigid bodies, move them by what the
+    /// increments gave them (`moved`, this member's running sum) and bring the walls' share
+    /// of the density rate up to date, part by part.
+    fn apply(&self, team: &Team, mine: &Range<usize>, buffer: usize, moved: &mut Moved) {
         // SAFETY: in this pass the increments are only read; each part's velocities and
         // totals are written by the one member that took the part; the barrier below ends
         // the pass.
@@ -404,11 +430,26 @@ impl<'a> Sweeps<'a> {
             );
         }
         team.wait();
+        if let Some(bodies) = self.bodies {
+            // SAFETY: the increments are read until the barrier below, as above.
+            for (total, dv) in moved.0.iter_mut().zip(bodies.velocity_change(kappa)) {
+                *total += dv;
+            }
+            for p in team.parts(mine.clone()) {
+                let (_, items) = self.part(p);
+                // SAFETY: each part's flux is written by the one member that took it; the
+                // barrier below orders this before the residual pass that reads it.
+                let flux = unsafe { self.flux.part_mut(items.clone()) };
+                flux.copy_from_slice(&self.base_flux[items.clone()]);
+                bodies.add_flux(flux, items, &moved.0, 1.0);
+            }
+            team.wait();
+        }
     }
 
     /// Take back the increments of `increments[buffer]`, applied last: negate them, part by
     /// part, and apply them.
-    fn take_back(&self, team: &Team, mine: &Range<usize>, buffer: usize) {
+    fn take_back(&self, team: &Team, mine: &Range<usize>, buffer: usize, moved: &mut Moved) {
         for p in team.parts(mine.clone()) {
             let (_, items) = self.part(p);
             // SAFETY: each part is negated by the member that took it; the barrier orders
@@ -418,7 +459,19 @@ impl<'a> Sweeps<'a> {
                 .for_each(|d| *d = -*d);
         }
         team.wait();
-        self.apply(team, mine, buffer);
+        self.apply(team, mine, buffer, moved);
+    }
+}
+
+/// One member's running sum of the rigid bodies' velocity changes in a solve.
+struct Moved(Vec<BodyVelocity>);
+
+impl Moved {
+    fn new(bodies: Option<&CoupledBodies>) -> Self {
+        Self(vec![
+            BodyVelocity::default();
+            bodies.map_or(0, |b| b.bodies())
+        ])
     }
 }
 

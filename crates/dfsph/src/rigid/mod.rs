@@ -6,15 +6,23 @@
 //! ([`coupling`]), as a force and a torque. Rapier (`rapier2d`) integrates the bodies and
 //! resolves their contacts with each other and with the tank, and their joints.
 //!
-//! Light bodies. The coupling is explicit: the fluid's answer to a body's acceleration (its
-//! added mass) reaches the body one step late, which diverges when the added mass exceeds the
-//! body's own (a 100 kg/m³ box in water). The body's acceleration is therefore integrated
-//! with an added-mass estimate `m_a` on both sides (`(m + m_a)·Δv = J + m·g·Δt + m_a·Δv_prev`,
-//! see [`RigidBodies::step`]): at rest or at constant acceleration nothing changes, while the
-//! one-step-late feedback is damped. Over a run the extra terms telescope to `m_a` times the
-//! difference of the first and the last step's velocity change, so momentum is kept.
+//! Free bodies move inside the pressure solves ([`coupled`]): every stiffness increment that
+//! pushes the water around a body pushes the body back within the same iteration, so the water
+//! sees the body's answer at once and fluid and bodies keep their momentum at every step,
+//! however light the body. The impulses summed after the step ([`coupling`]) are the ones the
+//! solves applied; rapier then moves the body with them, gravity and its contacts.
+//!
+//! Bodies held by a joint are the exception: rapier decides their motion, so the solves treat
+//! them as walls moving at their velocity, and they see the water one step late. That explicit
+//! coupling diverges when the water a body must move along (its added mass) outweighs the body,
+//! so their acceleration is integrated with an added-mass estimate `m_a` on both sides
+//! (`(m + m_a)·Δv = J + m·g·Δt + m_a·Δv_prev`, see [`RigidBodies::step`]): at rest or at
+//! constant acceleration nothing changes, while the one-step-late feedback is damped.
 
+pub(crate) mod coupled;
 pub(crate) mod coupling;
+use coupled::Mobility;
+pub use coupled::{BodyVelocity, CoupledBodies};
 use coupling::BodyImpulse;
 use outline::Outline;
 mod outline;
@@ -55,7 +63,8 @@ pub const MAX_DRAG_ACCELERATION: f32 = 100.0;
 /// How many times stiffer than rapier's defaults the contacts' springs are ([`RigidBodies::new`]).
 const CONTACT_STIFFENING: f32 = 4.0;
 
-/// Share of the displaced fluid's mass taken as a body's added mass ([`RigidBodies::step`]).
+/// Share of the displaced fluid's mass taken as the added mass of a body held by a joint
+/// ([`RigidBodies::step`]).
 const ADDED_MASS_SHARE: f32 = 1.0;
 
 /// The bodies of a simulation and the rapier world they live in.
@@ -76,7 +85,8 @@ pub(crate) struct Rigid {
     pub spec: BodySpec,
     outline: Outline,
     handle: rp::RigidBodyHandle,
-    /// The added-mass estimate of the body in water, kg/m, and its moment, kg·m.
+    /// The added-mass estimate of a body held by a joint, kg/m, and its moment, kg·m (zero
+    /// for a free body, which moves inside the solves).
     added_mass: f32,
     added_inertia: f32,
 
@@ -256,9 +266,14 @@ impl RigidBodies {
             }
         }
         let (local, volume) = sampling::sample(spec, d, kernel);
-        // The fluid a body moves along with it: about its own area of water (a plate moving
-        // across its face carries π/4·w² of it, a disc its own area).
-        let added_mass = ADDED_MASS_SHARE * rest_density * area;
+        // A free body moves inside the solves ([`coupled`]); one held by a joint sees the
+        // water one step late, damped by the fluid it moves along with it: about its own area
+        // of water (a plate moving across its face carries π/4·w² of it, a disc its own area).
+        let added_mass = if spec.joint.is_some() {
+            ADDED_MASS_SHARE * rest_density * area
+        } else {
+            0.0
+        };
         let inertia = self.world.bodies[handle]
             .mass_properties()
             .effective_angular_inertia();
@@ -299,6 +314,35 @@ impl RigidBodies {
         gv(self.world.bodies[self.bodies[k].handle].center_of_mass())
     }
 
+    /// How body `k` takes part in the solves: free bodies move with them, bodies held by a
+    /// joint do not (their inverse mass and inertia are given as zero).
+    pub(crate) fn mobility(&self, k: usize) -> Mobility {
+        let rb = &self.world.bodies[self.bodies[k].handle];
+        let free = self.bodies[k].spec.joint.is_none();
+        let inverse = |x: f32| if free && x > 0.0 { 1.0 / x } else { 0.0 };
+        Mobility {
+            centre: gv(rb.center_of_mass()),
+            inverse_mass: inverse(rb.mass()),
+            inverse_inertia: inverse(rb.mass_properties().effective_angular_inertia()),
+        }
+    }
+
+    /// Every body's velocity change under gravity over `dt`, as the solves see it: free
+    /// bodies fall, bodies held by a joint do not.
+    pub(crate) fn gravity_velocity_change(&self, gravity: Vec2, dt: f32) -> Vec<BodyVelocity> {
+        self.bodies
+            .iter()
+            .map(|b| BodyVelocity {
+                linear: if b.spec.joint.is_none() {
+                    dt * gravity
+                } else {
+                    Vec2::ZERO
+                },
+                angular: 0.0,
+            })
+            .collect()
+    }
+
     /// Advance the bodies by `dt` under gravity, the fluid's impulses over the step
     /// (`impulses[k]`: N·s/m and N·s about the centre of mass) and the drag, with the tank at
     /// `tank_offset` (m) moving at `tank_velocity`.
@@ -313,7 +357,8 @@ impl RigidBodies {
             let fluid = impulses.get(k).copied().unwrap_or_default();
             let (impulse, angular) = (fluid.linear, fluid.angular);
             // (m + m_a)·Δv = J + m·g·Δt + m_a·Δv_prev: the fluid's and gravity's velocity
-            // change, with the added mass on both sides (module doc). Written with velocity
+            // change, the velocity the solves gave a free body (m_a = 0); for a body held by a
+            // joint, with the added mass on both sides (module doc). Written with velocity
             // changes rather than accelerations, the extra terms telescope whatever Δt does.
             let ma = body.added_mass;
             let dv = (impulse + mass * dt * gravity + ma * body.previous_dv) / (mass + ma);
