@@ -70,13 +70,11 @@ pub struct StepStats {
 
 /// Which of a step's terms [`Simulation::rigid_body_impulses`] sums.
 #[derive(Clone, Copy, Debug)]
-enum Solves {
-    /// The divergence solve's.
-    Divergence,
+enum Terms {
     /// The mirrored walls' hydrostatic ghosts' (part of the non-pressure forces).
     Ghosts,
     /// Both solves' and the ghosts'.
-    Both,
+    All,
 }
 
 /// The state of one running scene.
@@ -535,8 +533,11 @@ impl Simulation {
             SolveReport::default()
         };
         // What the divergence solve gave the free rigid bodies.
-        let last_dt = self.last_dt;
-        let after_divergence = self.rigid_velocity_change(last_dt, Solves::Divergence);
+        let after_divergence = match (&self.coupled, self.settings.divergence_solve) {
+            (Some(coupled), true) => coupled.velocity_change(&self.fluid.divergence_stiffness),
+            (Some(coupled), false) => vec![BodyVelocity::default(); coupled.bodies()],
+            (None, _) => Vec::new(),
+        };
         // Line 7: Δt from the CFL condition and the stability bounds, no longer than a
         // recent retry allows.
         let cfl_dt = self.cfl_time_step();
@@ -545,7 +546,7 @@ impl Simulation {
         let density =
             self.density_solve_until_sound(cfl_dt.min(self.retry_dt_limit), &after_divergence);
         // The rigid bodies take what their walls gave the fluid in both solves, and move.
-        let impulses = self.rigid_body_impulses(density.dt, Solves::Both);
+        let impulses = self.rigid_body_impulses(density.dt, Terms::All);
         self.move_rigid_bodies(density.dt, &impulses);
         // Line 10: advect (and move the walls); put back what left the tank or entered a
         // body.
@@ -880,10 +881,19 @@ impl Simulation {
             return;
         };
         let mut moved = rigid.gravity_velocity_change(self.gravity, dt);
-        let ghosts = self.rigid_velocity_change(dt, Solves::Ghosts);
-        for ((m, &a), g) in moved.iter_mut().zip(after_divergence).zip(ghosts) {
+        for (m, &a) in moved.iter_mut().zip(after_divergence) {
             *m += a;
-            *m += g;
+        }
+        if self
+            .pressure
+            .walls()
+            .hydrostatic_ghost_gradient(self.gravity)
+            .is_some()
+        {
+            let ghosts = self.rigid_velocity_change(dt, Terms::Ghosts);
+            for (m, g) in moved.iter_mut().zip(ghosts) {
+                *m += g;
+            }
         }
         let Some(coupled) = &self.coupled else {
             return;
@@ -895,9 +905,9 @@ impl Simulation {
     }
 
     /// The velocity change of each free rigid body from what the walls gave the fluid in
-    /// `solves` of the step of `dt` (zero for bodies held by joints and without bodies).
-    fn rigid_velocity_change(&mut self, dt: f32, solves: Solves) -> Vec<BodyVelocity> {
-        let impulses = self.rigid_body_impulses(dt, solves);
+    /// `terms` of the step of `dt` (zero for bodies held by joints and without bodies).
+    fn rigid_velocity_change(&mut self, dt: f32, terms: Terms) -> Vec<BodyVelocity> {
+        let impulses = self.rigid_body_impulses(dt, terms);
         let Some(rigid) = &self.rigid else {
             return Vec::new();
         };
@@ -914,9 +924,9 @@ impl Simulation {
             .collect()
     }
 
-    /// The impulse the fluid gave each rigid body in `solves` of the step of `dt`, with its
-    /// moment about the body's centre of mass ([`coupling`]).
-    fn rigid_body_impulses(&mut self, dt: f32, solves: Solves) -> Vec<coupling::BodyImpulse> {
+    /// The impulse the fluid gave each rigid body through `terms` of the step of `dt`, with
+    /// its moment about the body's centre of mass ([`coupling`]).
+    fn rigid_body_impulses(&mut self, dt: f32, terms: Terms) -> Vec<coupling::BodyImpulse> {
         let Some(rigid) = &self.rigid else {
             return Vec::new();
         };
@@ -930,17 +940,13 @@ impl Simulation {
         let pressure_to_kappa = dt * self.pressure.pressure_force_scale();
         let (step, fluid, _) = self.step_parts(dt);
         // Scenes with bodies run DFSPH (`Scene::validate`), whose solves apply these terms.
-        let (divergence, density, ghosts) = match solves {
-            Solves::Divergence => (true, false, false),
-            Solves::Ghosts => (false, false, true),
-            Solves::Both => (true, true, true),
-        };
+        let solves = matches!(terms, Terms::All);
         let terms = WallTerms {
-            divergence_stiffness: (divergence && step.settings.divergence_solve)
+            divergence_stiffness: (solves && step.settings.divergence_solve)
                 .then_some(&fluid.divergence_stiffness[..]),
-            pressure_to_kappa: if density { pressure_to_kappa } else { 0.0 },
+            pressure_to_kappa: if solves { pressure_to_kappa } else { 0.0 },
             weight,
-            ghost_slope: ghost_slope.filter(|_| ghosts),
+            ghost_slope,
         };
         coupling::body_impulses(&step, fluid, &terms, mass, &rigid_of, &centres)
     }
