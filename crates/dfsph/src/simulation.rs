@@ -339,13 +339,7 @@ impl Simulation {
             .get_or_insert_with(|| RigidBodies::new(lo, hi, self.gravity));
         let body_id = self.bodies.len() as BodyId;
         let tank = self.bodies[0];
-        let (k, local, volume) = rigid.add(
-            spec,
-            tank.offset,
-            self.spacing,
-            &self.kernel,
-            self.scene.rest_density as f32,
-        );
+        let (k, local, volume) = rigid.add(spec, tank.offset, self.spacing, &self.kernel);
         self.bodies.push(Body {
             rigid: Some(k as u16),
             ..Default::default()
@@ -904,8 +898,9 @@ impl Simulation {
         coupled.add_flux(flux, 0..n, &moved, 1.0);
     }
 
-    /// The velocity change of each free rigid body from what the walls gave the fluid in
-    /// `terms` of the step of `dt` (zero for bodies held by joints and without bodies).
+    /// The velocity change of each rigid body from what the walls gave the fluid in `terms`
+    /// of the step of `dt`, about its mobility centre ([`RigidBodies::mobility`]: zero for a
+    /// fixed body, a turn about the anchor for a hinged one).
     fn rigid_velocity_change(&mut self, dt: f32, terms: Terms) -> Vec<BodyVelocity> {
         let impulses = self.rigid_body_impulses(dt, terms);
         let Some(rigid) = &self.rigid else {
@@ -916,9 +911,11 @@ impl Simulation {
             .enumerate()
             .map(|(k, j)| {
                 let mobile = rigid.mobility(k);
+                // The impulse's moment about the centre of mass, moved to the mobility centre.
+                let r = rigid.centre_of_mass(k) - mobile.centre;
                 BodyVelocity {
                     linear: mobile.inverse_mass * j.linear,
-                    angular: mobile.inverse_inertia * j.angular,
+                    angular: mobile.inverse_inertia * (j.angular + r.perp_dot(j.linear)),
                 }
             })
             .collect()

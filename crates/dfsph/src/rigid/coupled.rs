@@ -22,8 +22,9 @@
 //! particles along a light body's face would together move it a hundred times too far. Each
 //! particle's factor therefore also counts what its neighbours along the same body do to its
 //! rate (the Gershgorin bound of the body's rows, [`CoupledBodies::damp_factors`]), which keeps
-//! the iteration from overshooting however light the body is. Bodies held by a joint are left
-//! out (their velocity is rapier's to decide); they see the water one step late.
+//! the iteration from overshooting however light the body is. A hinged body takes part as a
+//! rotation about its anchor (`c_k` the anchor, `I_k` the moment about it, `1/M_k` zero); a body
+//! fixed by a joint does not move and is left out.
 
 use std::ops::Range;
 
@@ -48,15 +49,15 @@ impl std::ops::AddAssign for BodyVelocity {
 /// What a body needs to take part in the solves.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Mobility {
-    /// Centre of mass, m.
+    /// The point the body turns about, m: its centre of mass, or a hinge's anchor.
     pub centre: Vec2,
     /// 1/M, per kg/m (0: the body does not move with the solve).
     pub inverse_mass: f32,
-    /// 1/I, per kg·m (0: the body does not turn with the solve).
+    /// 1/I about `centre`, per kg·m (0: the body does not turn with the solve).
     pub inverse_inertia: f32,
 }
 
-/// The contacts of the fluid with the free rigid bodies in one step, for the solves.
+/// The contacts of the fluid with the moving rigid bodies in one step, for the solves.
 #[derive(Clone, Debug, Default)]
 pub struct CoupledBodies {
     /// Per contact, the fluid particle, ascending.
@@ -133,7 +134,7 @@ impl CoupledBodies {
         out
     }
 
-    /// Whether no fluid particle touches a free body.
+    /// Whether no fluid particle touches a body that moves.
     pub fn is_empty(&self) -> bool {
         self.particle.is_empty()
     }

@@ -6,18 +6,12 @@
 //! ([`coupling`]), as a force and a torque. Rapier (`rapier2d`) integrates the bodies and
 //! resolves their contacts with each other and with the tank, and their joints.
 //!
-//! Free bodies move inside the pressure solves ([`coupled`]): every stiffness increment that
+//! Bodies move inside the pressure solves ([`coupled`]): every stiffness increment that
 //! pushes the water around a body pushes the body back within the same iteration, so the water
 //! sees the body's answer at once and fluid and bodies keep their momentum at every step,
-//! however light the body. The impulses summed after the step ([`coupling`]) are the ones the
-//! solves applied; rapier then moves the body with them, gravity and its contacts.
-//!
-//! Bodies held by a joint are the exception: rapier decides their motion, so the solves treat
-//! them as walls moving at their velocity, and they see the water one step late. That explicit
-//! coupling diverges when the water a body must move along (its added mass) outweighs the body,
-//! so their acceleration is integrated with an added-mass estimate `m_a` on both sides
-//! (`(m + m_a)·Δv = J + m·g·Δt + m_a·Δv_prev`, see [`RigidBodies::step`]): at rest or at
-//! constant acceleration nothing changes, while the one-step-late feedback is damped.
+//! however light the body. A hinged body turns about its anchor in the solves; a body fixed by
+//! a joint does not move. The impulses summed after the step ([`coupling`]) are the ones the
+//! solves applied; rapier then moves the body with them, gravity, its joint and its contacts.
 
 pub(crate) mod coupled;
 pub(crate) mod coupling;
@@ -63,10 +57,6 @@ pub const MAX_DRAG_ACCELERATION: f32 = 100.0;
 /// How many times stiffer than rapier's defaults the contacts' springs are ([`RigidBodies::new`]).
 const CONTACT_STIFFENING: f32 = 4.0;
 
-/// Share of the displaced fluid's mass taken as the added mass of a body held by a joint
-/// ([`RigidBodies::step`]).
-const ADDED_MASS_SHARE: f32 = 1.0;
-
 /// The bodies of a simulation and the rapier world they live in.
 pub(crate) struct RigidBodies {
     world: rp::PhysicsWorld,
@@ -85,15 +75,8 @@ pub(crate) struct Rigid {
     pub spec: BodySpec,
     outline: Outline,
     handle: rp::RigidBodyHandle,
-    /// The added-mass estimate of a body held by a joint, kg/m, and its moment, kg·m (zero
-    /// for a free body, which moves inside the solves).
-    added_mass: f32,
-    added_inertia: f32,
-
-    /// The body's velocity change from the fluid and gravity in the previous step, m/s, and
-    /// its change of spin, rad/s.
-    previous_dv: Vec2,
-    previous_dw: f32,
+    /// A hinge's anchor in the tank body's frame, m.
+    hinge: Option<Vec2>,
 }
 
 /// A body held by the pointer: the grabbed point, in the body's frame, is pulled to `target`.
@@ -210,7 +193,6 @@ impl RigidBodies {
         tank_offset: Vec2,
         d: f32,
         kernel: &CubicSpline,
-        rest_density: f32,
     ) -> (usize, Vec<Vec2>, Vec<f32>) {
         let position = Vec2::new(spec.position[0] as f32, spec.position[1] as f32) + tank_offset;
         let builder = rp::RigidBodyBuilder::dynamic()
@@ -238,6 +220,7 @@ impl RigidBodies {
             .friction(spec.friction as f32)
             .restitution(0.0);
         let (handle, _) = self.world.insert(builder, collider);
+        let mut hinge = None;
         match &spec.joint {
             None => {}
             Some(BodyJoint::Fixed) => {
@@ -255,10 +238,10 @@ impl RigidBodies {
                 let (s, c) = (spec.angle as f32).sin_cos();
                 let rel = anchor + tank_offset - position;
                 let local = Vec2::new(c * rel.x + s * rel.y, -s * rel.x + c * rel.y);
+                let in_tank = anchor + tank_offset - tank_offset_of(&self.world, self.tank);
+                hinge = Some(in_tank);
                 let joint = rp::RevoluteJointBuilder::new()
-                    .local_anchor1(rv(
-                        anchor + tank_offset - tank_offset_of(&self.world, self.tank)
-                    ))
+                    .local_anchor1(rv(in_tank))
                     .local_anchor2(rv(local));
                 self.world
                     .impulse_joints
@@ -266,27 +249,11 @@ impl RigidBodies {
             }
         }
         let (local, volume) = sampling::sample(spec, d, kernel);
-        // A free body moves inside the solves ([`coupled`]); one held by a joint sees the
-        // water one step late, damped by the fluid it moves along with it: about its own area
-        // of water (a plate moving across its face carries π/4·w² of it, a disc its own area).
-        let added_mass = if spec.joint.is_some() {
-            ADDED_MASS_SHARE * rest_density * area
-        } else {
-            0.0
-        };
-        let inertia = self.world.bodies[handle]
-            .mass_properties()
-            .effective_angular_inertia();
-        let mass = self.world.bodies[handle].mass();
-        let added_inertia = inertia * added_mass / mass.max(f32::MIN_POSITIVE);
         self.bodies.push(Rigid {
             spec: spec.clone(),
             outline: Outline::of(spec),
             handle,
-            added_mass,
-            added_inertia,
-            previous_dv: Vec2::ZERO,
-            previous_dw: 0.0,
+            hinge,
         });
         (self.bodies.len() - 1, local, volume)
     }
@@ -314,31 +281,54 @@ impl RigidBodies {
         gv(self.world.bodies[self.bodies[k].handle].center_of_mass())
     }
 
-    /// How body `k` takes part in the solves: free bodies move with them, bodies held by a
-    /// joint do not (their inverse mass and inertia are given as zero).
+    /// The world position of body `k`'s hinge, if a hinge holds it.
+    fn hinge(&self, k: usize) -> Option<Vec2> {
+        let in_tank = self.bodies[k].hinge?;
+        Some(tank_offset_of(&self.world, self.tank) + in_tank)
+    }
+
+    /// How body `k` takes part in the solves: a free body moves and turns about its centre
+    /// of mass; a hinged one turns about its anchor, with its moment of inertia about it
+    /// (`I + M r²`); one fixed by a joint does not move (inverse mass and inertia zero).
     pub(crate) fn mobility(&self, k: usize) -> Mobility {
         let rb = &self.world.bodies[self.bodies[k].handle];
-        let free = self.bodies[k].spec.joint.is_none();
-        let inverse = |x: f32| if free && x > 0.0 { 1.0 / x } else { 0.0 };
-        Mobility {
-            centre: gv(rb.center_of_mass()),
-            inverse_mass: inverse(rb.mass()),
-            inverse_inertia: inverse(rb.mass_properties().effective_angular_inertia()),
+        let (mass, com) = (rb.mass(), gv(rb.center_of_mass()));
+        let inertia = rb.mass_properties().effective_angular_inertia();
+        let inverse = |x: f32| if x > 0.0 { 1.0 / x } else { 0.0 };
+        match (&self.bodies[k].spec.joint, self.hinge(k)) {
+            (None, _) => Mobility {
+                centre: com,
+                inverse_mass: inverse(mass),
+                inverse_inertia: inverse(inertia),
+            },
+            (Some(BodyJoint::Hinge { .. }), Some(anchor)) => Mobility {
+                centre: anchor,
+                inverse_mass: 0.0,
+                inverse_inertia: inverse(inertia + mass * (com - anchor).length_squared()),
+            },
+            _ => Mobility {
+                centre: com,
+                inverse_mass: 0.0,
+                inverse_inertia: 0.0,
+            },
         }
     }
 
-    /// Every body's velocity change under gravity over `dt`, as the solves see it: free
-    /// bodies fall, bodies held by a joint do not.
+    /// Every body's velocity change under gravity over `dt`, as the solves see it, about its
+    /// [`Self::mobility`] centre: a free body falls, a hinged one turns under its weight's
+    /// moment about the anchor, a fixed one stays.
     pub(crate) fn gravity_velocity_change(&self, gravity: Vec2, dt: f32) -> Vec<BodyVelocity> {
-        self.bodies
-            .iter()
-            .map(|b| BodyVelocity {
-                linear: if b.spec.joint.is_none() {
-                    dt * gravity
-                } else {
-                    Vec2::ZERO
-                },
-                angular: 0.0,
+        (0..self.bodies.len())
+            .map(|k| {
+                let mobile = self.mobility(k);
+                let rb = &self.world.bodies[self.bodies[k].handle];
+                let (mass, com) = (rb.mass(), gv(rb.center_of_mass()));
+                BodyVelocity {
+                    linear: mobile.inverse_mass * mass * dt * gravity,
+                    angular: mobile.inverse_inertia
+                        * (com - mobile.centre).perp_dot(mass * gravity)
+                        * dt,
+                }
             })
             .collect()
     }
@@ -350,22 +340,16 @@ impl RigidBodies {
         self.world.gravity = rv(gravity);
         self.world.integration_parameters.dt = dt;
         self.world.bodies[self.tank].set_next_kinematic_translation(rv(tank_offset));
-        for (k, body) in self.bodies.iter_mut().enumerate() {
+        for (k, body) in self.bodies.iter().enumerate() {
             let rb = &mut self.world.bodies[body.handle];
             let mass = rb.mass();
             let inertia = rb.mass_properties().effective_angular_inertia();
             let fluid = impulses.get(k).copied().unwrap_or_default();
             let (impulse, angular) = (fluid.linear, fluid.angular);
-            // (m + m_a)·Δv = J + m·g·Δt + m_a·Δv_prev: the fluid's and gravity's velocity
-            // change, the velocity the solves gave a free body (m_a = 0); for a body held by a
-            // joint, with the added mass on both sides (module doc). Written with velocity
-            // changes rather than accelerations, the extra terms telescope whatever Δt does.
-            let ma = body.added_mass;
-            let dv = (impulse + mass * dt * gravity + ma * body.previous_dv) / (mass + ma);
-            let ia = body.added_inertia;
-            let dw = (angular + ia * body.previous_dw) / (inertia + ia).max(f32::MIN_POSITIVE);
-            body.previous_dv = dv;
-            body.previous_dw = dw;
+            // The fluid's and gravity's velocity change, as the solves moved the body; a
+            // joint's constraint and contacts are rapier's.
+            let dv = impulse / mass + dt * gravity;
+            let dw = angular / inertia.max(f32::MIN_POSITIVE);
             let (accel, alpha) = (dv / dt, dw / dt);
             rb.reset_forces(false);
             rb.reset_torques(false);
@@ -557,7 +541,7 @@ mod tests {
         let (d, dt, g) = (0.01, 0.0005, Vec2::new(0.0, -9.81));
         let mut bodies = RigidBodies::new(Vec2::ZERO, Vec2::new(2.0, 1.0), g);
         let spec = BodySpec::new_box([0.4, 0.2], 1000.0, [1.0, 0.1]);
-        bodies.add(&spec, Vec2::ZERO, d, &CubicSpline::new(2.0 * d), 1000.0);
+        bodies.add(&spec, Vec2::ZERO, d, &CubicSpline::new(2.0 * d));
         let mass = 1000.0 * 0.4 * 0.2;
         let push = BodyImpulse {
             linear: 10.0 * mass * dt * g,
