@@ -940,7 +940,7 @@ impl ViewerApp {
             if let Some(body) = rigid.get(k).filter(|_| k == held) {
                 let from = transform.to_screen(bodies::grabbed_point(body, local));
                 let to = transform.to_screen(target);
-                let stroke = Stroke::new(1.5, Color32::from_white_alpha(200));
+                let stroke = Stroke::new(1.5_f32, Color32::from_white_alpha(200));
                 world_painter.line_segment([from, to], stroke);
                 world_painter.circle_filled(from, 3.0, Color32::WHITE);
                 world_painter.circle_stroke(to, 4.0, stroke);
@@ -971,7 +971,7 @@ impl ViewerApp {
             world_painter.circle_stroke(
                 pos,
                 self.mapper.tool_radius * transform.scale(),
-                Stroke::new(1.5, color),
+                Stroke::new(1.5_f32, color),
             );
         }
 
@@ -1034,8 +1034,8 @@ impl ViewerApp {
                 dfsph::scene::Probe::Pressure { at, .. } => {
                     let p =
                         transform.to_screen(dfsph::Vec2::new(at[0] as f32, at[1] as f32) + offset);
-                    painter.circle_stroke(p, 5.0, Stroke::new(2.0, Color32::BLACK));
-                    painter.circle_stroke(p, 5.0, Stroke::new(1.5, color));
+                    painter.circle_stroke(p, 5.0, Stroke::new(2.0_f32, Color32::BLACK));
+                    painter.circle_stroke(p, 5.0, Stroke::new(1.5_f32, color));
                     painter.circle_filled(p, 1.5, color);
                     // Labels of probes on the right wall go to their left, inside the tank.
                     let right_wall =
@@ -1052,14 +1052,14 @@ impl ViewerApp {
                     let top = transform.to_screen(dfsph::Vec2::new(x, hi.y));
                     painter.add(egui::Shape::dashed_line(
                         &[bottom, top],
-                        Stroke::new(1.0, color.gamma_multiply(0.8)),
+                        Stroke::new(1.0_f32, color.gamma_multiply(0.8)),
                         6.0,
                         4.0,
                     ));
                     let level = transform.to_screen(dfsph::Vec2::new(x, lo.y + value as f32));
                     painter.line_segment(
                         [level - vec2(8.0, 0.0), level + vec2(8.0, 0.0)],
-                        Stroke::new(2.5, color),
+                        Stroke::new(2.5_f32, color),
                     );
                     (level + vec2(10.0, -9.0), egui::Align2::LEFT_BOTTOM)
                 }

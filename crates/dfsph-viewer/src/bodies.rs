@@ -93,11 +93,11 @@ pub fn draw_bodies(painter: &egui::Painter, transform: &ViewTransform, bodies: &
         painter.add(Shape::convex_polygon(
             points.clone(),
             fill,
-            Stroke::new(1.5, BODY_EDGE),
+            Stroke::new(1.5_f32, BODY_EDGE),
         ));
         if body.spec.shape == BodyShape::Circle {
             let centre = transform.to_screen(body.position);
-            painter.line_segment([centre, points[0]], Stroke::new(1.5, BODY_EDGE));
+            painter.line_segment([centre, points[0]], Stroke::new(1.5_f32, BODY_EDGE));
         }
     }
 }

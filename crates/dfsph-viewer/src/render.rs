@@ -458,7 +458,7 @@ pub fn legend(
         mesh.add_colored_rect(r, coloring.color(0.5 * (t0 + t1)));
     }
     painter.add(Shape::mesh(mesh));
-    painter.rect_stroke(bar, 0.0, Stroke::new(1.0, Color32::GRAY));
+    painter.rect_stroke(bar, 0.0, Stroke::new(1.0_f32, Color32::GRAY));
     for (t, v) in [(0.0, lo), (0.5, 0.5 * (lo + hi)), (1.0, hi)] {
         if horizontal {
             let x = bar.left() + t * bar.width();
@@ -478,7 +478,7 @@ pub fn legend(
             let y = bar.bottom() - t * bar.height();
             painter.line_segment(
                 [pos2(bar.right(), y), pos2(bar.right() + 4.0, y)],
-                Stroke::new(1.0, Color32::GRAY),
+                Stroke::new(1.0_f32, Color32::GRAY),
             );
             painter.text(
                 pos2(bar.right() + 6.0, y),
