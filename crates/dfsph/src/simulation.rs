@@ -154,6 +154,9 @@ pub struct Simulation {
     /// velocities as the step began.
     coupled: Option<CoupledBodies>,
     wall_flux_at_start: Vec<f32>,
+    /// The moving bodies' velocity change as the density solve of the attempt at hand began
+    /// ([`Self::predict_rigid_bodies`]).
+    rigid_predicted: Vec<BodyVelocity>,
 }
 
 /// Particle data in creation order, for output.
@@ -232,6 +235,7 @@ impl Simulation {
             walls_moved_for_bodies: true,
             coupled: None,
             wall_flux_at_start: Vec::new(),
+            rigid_predicted: Vec::new(),
         };
         let mut samples = BoundarySamples::default();
         if hexagonal {
@@ -573,6 +577,9 @@ impl Simulation {
             self.predict_rigid_bodies(dt, after_divergence);
             let (step, fluid, pressure) = self.step_parts(dt);
             let report = pressure.density_solve(&step, fluid);
+            // The check advects the bodies' walls as the solves moved them.
+            self.move_rigid_walls_as_solved(dt);
+            let (step, fluid, pressure) = self.step_parts(dt);
             if attempts.is_last()
                 || !attempts.redo(
                     &AttemptCheck::of(&step, &report, pressure, fluid),
@@ -586,7 +593,9 @@ impl Simulation {
                     retries,
                 };
             }
-            // Redo the step from the divergence-free velocities.
+            // Redo the step from the divergence-free velocities (and the bodies' walls from
+            // their velocities as the step began).
+            self.place_rigid_particles();
             self.fluid.velocity.clone_from(&self.retry_velocity);
             self.fluid
                 .pressure_over_rho0
@@ -896,6 +905,41 @@ impl Simulation {
         flux.clone_from(&self.wall_flux_at_start);
         let n = flux.len();
         coupled.add_flux(flux, 0..n, &moved, 1.0);
+        self.rigid_predicted = moved;
+    }
+
+    /// Give the moving bodies' boundary particles the velocity the step's solves gave their
+    /// bodies (the prediction of [`Self::predict_rigid_bodies`] and the density solve's
+    /// impulses), for the step's linearisation check; rapier's step puts them where the
+    /// bodies went afterwards ([`Self::place_rigid_particles`]).
+    fn move_rigid_walls_as_solved(&mut self, dt: f32) {
+        let (Some(rigid), Some(coupled)) = (&self.rigid, &self.coupled) else {
+            return;
+        };
+        let kappa_per_pressure = dt * self.pressure.pressure_force_scale();
+        let mut moved = self.rigid_predicted.clone();
+        let density =
+            coupled.velocity_change_of(&self.fluid.pressure_over_rho0, kappa_per_pressure);
+        for (m, d) in moved.iter_mut().zip(density) {
+            *m += d;
+        }
+        let centres: Vec<Vec2> = (0..rigid.len()).map(|k| rigid.mobility(k).centre).collect();
+        let bodies = &self.bodies;
+        self.boundary
+            .position
+            .par_iter()
+            .zip(self.boundary.velocity.par_iter_mut())
+            .zip(self.boundary.body.par_iter())
+            .with_min_len(LIGHT_PASS_MIN_ITEMS)
+            .for_each(|((&x, v), &b)| {
+                if let Some(k) = bodies[b as usize].rigid {
+                    let (k, m) = (
+                        k as usize,
+                        moved.get(k as usize).copied().unwrap_or_default(),
+                    );
+                    *v += m.linear + m.angular * (x - centres[k]).perp();
+                }
+            });
     }
 
     /// The velocity change of each rigid body from what the walls gave the fluid in `terms`

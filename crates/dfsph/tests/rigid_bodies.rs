@@ -280,16 +280,17 @@ fn a_hinged_flap_and_the_water_keep_their_angular_momentum_about_the_hinge() {
 }
 
 #[test]
-fn bodies_that_hit_water_rebound_at_most_half_as_fast_as_they_came() {
+fn bodies_that_hit_water_leave_it_at_most_a_fifth_as_fast_as_they_came() {
     // A light box dropped flat onto still water from 5 cm, and a box dropped 0.5 m onto a
     // floor with one row of water on it. With the explicit coupling the first left the water
     // upwards at 2.3 m/s after meeting it at 0.9–1.7 m/s, and the second, met at 3.1 m/s,
-    // left the wet floor at 12.4 m/s.
+    // left the wet floor at 12.4 m/s (at 1.0 m/s with the strong coupling while the step's
+    // linearisation check still moved the box's walls at its velocity before the impact).
     let cases = [
-        ("light box on still water", 100.0, 0.35, 0.5, 0.2),
-        ("box on a wet floor", 500.0, 0.01, 0.6, 0.5),
+        ("light box on still water", 100.0, 0.35, 0.5),
+        ("box on a wet floor", 500.0, 0.01, 0.6),
     ];
-    for (what, density, depth, y, max_ratio) in cases {
+    for (what, density, depth, y) in cases {
         let mut scene = Scene::from_json(&format!(
             r#"{{"particle_radius": 0.005, "tank": {{"min": [0, 0], "max": [1.2, 0.8]}},
                 "fluid": [{{"min": [0, 0], "max": [1.2, {depth}]}}]}}"#
@@ -312,7 +313,7 @@ fn bodies_that_hit_water_rebound_at_most_half_as_fast_as_they_came() {
         assert_eq!(sim.total_clamped(), 0, "{what}: a particle went through");
         assert!(fall < -0.5, "{what}: it fell at {fall} m/s");
         assert!(
-            rebound < max_ratio * -fall,
+            rebound < 0.2 * -fall,
             "{what}: met the water at {} m/s, left at {rebound} m/s",
             -fall
         );

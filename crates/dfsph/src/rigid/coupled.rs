@@ -148,9 +148,14 @@ impl CoupledBodies {
     /// on the water around it (module doc). Summed in one fixed order, so every worker that
     /// asks gets the same bits.
     pub fn velocity_change(&self, kappa: &[f32]) -> Vec<BodyVelocity> {
+        self.velocity_change_of(kappa, 1.0)
+    }
+
+    /// [`Self::velocity_change`] of the stiffness field `scale·values`.
+    pub fn velocity_change_of(&self, values: &[f32], scale: f32) -> Vec<BodyVelocity> {
         let mut sums = vec![(DVec2::ZERO, 0.0f64); self.bodies()];
         for c in 0..self.particle.len() {
-            let k = kappa[self.particle[c] as usize] as f64;
+            let k = (scale * values[self.particle[c] as usize]) as f64;
             let s = &mut sums[self.body[c] as usize];
             s.0 += k * self.g[c].as_dvec2();
             s.1 += k * self.h[c] as f64;
