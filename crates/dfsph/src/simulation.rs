@@ -923,6 +923,14 @@ impl Simulation {
         for (m, d) in moved.iter_mut().zip(density) {
             *m += d;
         }
+        // A body that touches something moves as its contacts let it, which the solves do
+        // not see: its walls keep their velocity from before the step, the check's cautious
+        // assumption.
+        for (k, m) in moved.iter_mut().enumerate() {
+            if rigid.touches_something(k) {
+                *m = BodyVelocity::default();
+            }
+        }
         let centres: Vec<Vec2> = (0..rigid.len()).map(|k| rigid.mobility(k).centre).collect();
         let bodies = &self.bodies;
         self.boundary

@@ -314,6 +314,17 @@ impl RigidBodies {
         }
     }
 
+    /// Whether body `k` touches another body, the tank or a wall: rapier's contacts, not the
+    /// water, then decide part of its motion in the coming step.
+    pub(crate) fn touches_something(&self, k: usize) -> bool {
+        let rb = &self.world.bodies[self.bodies[k].handle];
+        rb.colliders().iter().any(|&c| {
+            self.world
+                .contact_pairs_with(c)
+                .any(|pair| pair.has_any_active_contact())
+        })
+    }
+
     /// Every body's velocity change under gravity over `dt`, as the solves see it, about its
     /// [`Self::mobility`] centre: a free body falls, a hinged one turns under its weight's
     /// moment about the anchor, a fixed one stays.
