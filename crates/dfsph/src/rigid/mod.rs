@@ -110,34 +110,31 @@ impl RigidBodies {
         let params = &mut world.integration_parameters;
         params.contact_softness.natural_frequency *= CONTACT_STIFFENING;
         params.static_contact_softness.natural_frequency *= CONTACT_STIFFENING;
+        // Contact recycling keeps a pair's contacts, distances included, until the bodies
+        // have moved 5 cm relative to each other: five particle spacings here, where the
+        // water moves the bodies every step and [`Self::touches_something`] reads the
+        // distances. A handful of bodies costs little to update every step.
+        params.contact_recycling = false;
         let (tank, _) = world.insert(
             rp::RigidBodyBuilder::kinematic_position_based(),
             rp::ColliderBuilder::cuboid(0.01, 0.01).sensor(true),
         );
-        // Four thick walls around the interior.
-        let size = hi - lo;
-        let t = size.max_element();
+        // The four walls as half-spaces (each the plane of a wall, solid beyond it). Their
+        // contacts with a body are exact (the body's support feature against a plane). Thick
+        // cuboids were not: parry meets a convex polygon and a cuboid by GJK, whose tolerance
+        // grows with the shapes' size, and against a floor metres wide it lost a box resting
+        // 0.2 mm above it (stress seed 8: the box then fell through the floor unopposed).
         let centre = 0.5 * (lo + hi);
-        for (c, half) in [
-            (
-                Vec2::new(lo.x - t, centre.y),
-                Vec2::new(t, 0.5 * size.y + 2.0 * t),
-            ),
-            (
-                Vec2::new(hi.x + t, centre.y),
-                Vec2::new(t, 0.5 * size.y + 2.0 * t),
-            ),
-            (
-                Vec2::new(centre.x, lo.y - t),
-                Vec2::new(0.5 * size.x + 2.0 * t, t),
-            ),
-            (
-                Vec2::new(centre.x, hi.y + t),
-                Vec2::new(0.5 * size.x + 2.0 * t, t),
-            ),
+        for (at, inward) in [
+            (Vec2::new(lo.x, centre.y), Vec2::X),
+            (Vec2::new(hi.x, centre.y), -Vec2::X),
+            (Vec2::new(centre.x, lo.y), Vec2::Y),
+            (Vec2::new(centre.x, hi.y), -Vec2::Y),
         ] {
-            let wall = rp::ColliderBuilder::cuboid(half.x, half.y)
-                .translation(rv(c))
+            // Density zero: a half-space has no finite mass, and the tank is kinematic.
+            let wall = rp::ColliderBuilder::new(rp::SharedShape::halfspace(rv(inward)))
+                .translation(rv(at))
+                .density(0.0)
                 .friction(0.5);
             world
                 .colliders
@@ -315,13 +312,22 @@ impl RigidBodies {
     }
 
     /// Whether body `k` touches another body, the tank or a wall: rapier's contacts, not the
-    /// water, then decide part of its motion in the coming step.
+    /// water, then decide part of its motion in the coming step. Touching means a solver
+    /// contact closer than rapier's allowed error (5 mm): rapier also keeps speculative
+    /// contacts up to its prediction distance (2 cm) away, which do not hold the body, and a
+    /// box falling onto a film of water would count as touching the floor under it.
     pub(crate) fn touches_something(&self, k: usize) -> bool {
+        let near = self.world.integration_parameters.allowed_linear_error();
         let rb = &self.world.bodies[self.bodies[k].handle];
         rb.colliders().iter().any(|&c| {
-            self.world
-                .contact_pairs_with(c)
-                .any(|pair| pair.has_any_active_contact())
+            self.world.contact_pairs_with(c).any(|pair| {
+                pair.manifolds().iter().any(|m| {
+                    m.data
+                        .solver_contacts
+                        .iter()
+                        .any(|contact| contact.dist <= near)
+                })
+            })
         })
     }
 
@@ -564,5 +570,70 @@ mod tests {
             deepest = deepest.max(0.1 - bodies.centre_of_mass(0).y);
         }
         assert!(deepest < 1.0e-3, "the box went {deepest} m into the floor");
+    }
+
+    #[test]
+    fn the_tank_walls_find_a_box_resting_a_fifth_of_a_millimetre_from_them_wherever_it_stands() {
+        // Stress seed 8: a box resting 0.16 mm above the floor lost its contact with it (parry
+        // met the box and a cuboid floor metres wide by GJK, which missed one pose in eleven)
+        // and fell through the floor. The contact query rapier's narrow phase relies on must
+        // find the floor and the side walls at every tank offset and body position.
+        let g = Vec2::new(0.0, -9.81);
+        let (lo, hi) = (Vec2::ZERO, Vec2::new(4.0, 3.0));
+        let bodies = RigidBodies::new(lo, hi, g);
+        let walls: Vec<&rp::Collider> = bodies.world.bodies[bodies.tank]
+            .colliders()
+            .iter()
+            .map(|&c| &bodies.world.colliders[c])
+            .filter(|c| !c.is_sensor())
+            .collect();
+        let half = Vec2::new(0.117_545_99, 0.127_633_04);
+        let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            .map(|(sx, sy)| rp::Vector::new(sx * half.x, sy * half.y));
+        let block = rp::SharedShape::convex_hull(&corners).unwrap();
+        let gap = 1.6e-4;
+        let (mut checked, mut missed) = (0, Vec::new());
+        for i in 0..400 {
+            let tank = rp::Pose::from_translation(rv(Vec2::new(-0.04 + 2.0e-4 * i as f32, 0.0)));
+            for j in 0..20 {
+                let x = lo.x + 0.3 + 0.17 * j as f32;
+                // On the floor, and against the left wall turned a quarter.
+                for (centre, angle) in [
+                    (Vec2::new(x, lo.y + half.y + gap), -2.5e-5),
+                    (
+                        Vec2::new(lo.x + half.y + gap, lo.y + 0.3 + 0.12 * j as f32),
+                        std::f32::consts::FRAC_PI_2,
+                    ),
+                ] {
+                    let centre = centre + gv(tank.translation);
+                    let pose = rp::Pose::new(rv(centre), angle);
+                    let nearest = walls
+                        .iter()
+                        .filter_map(|wall| {
+                            let at = tank * *wall.position_wrt_parent().unwrap();
+                            rapier2d::parry::query::contact(
+                                &at,
+                                wall.shape(),
+                                &pose,
+                                block.as_ref(),
+                                0.002,
+                            )
+                            .unwrap()
+                            .map(|c| c.dist)
+                        })
+                        .fold(f32::INFINITY, f32::min);
+                    checked += 1;
+                    if (nearest - gap).abs() > 2.0e-5 {
+                        missed.push((centre, nearest));
+                    }
+                }
+            }
+        }
+        assert!(
+            missed.is_empty(),
+            "{} of {checked} poses: the nearest wall contact was wrong, e.g. {:?}",
+            missed.len(),
+            &missed[..missed.len().min(3)]
+        );
     }
 }
