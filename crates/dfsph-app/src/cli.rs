@@ -200,6 +200,13 @@ pub struct RunArgs {
     #[arg(long, value_name = "PIXELS", default_value_t = 800,
           value_parser = clap::value_parser!(u32).range(64..=16384))]
     pub png_width: u32,
+
+    /// Exit 0 even when the run blew up without NaN: the water's energy rose by more than
+    /// 2 % of M·g·H without an action, or the density solve ended at its iteration cap 20
+    /// steps in a row. Without it such a run still writes everything, warns when it
+    /// happens, and exits with 2.
+    #[arg(long)]
+    pub allow_blow_up: bool,
 }
 
 #[derive(Debug, Args)]

@@ -19,6 +19,7 @@
 //! up to the last step).
 
 mod bench;
+mod blowup;
 mod cli;
 mod interrupt;
 mod output;
@@ -230,6 +231,7 @@ fn run(args: RunArgs) -> Result<(), Failure> {
     output::create_output_dir(&args.out).map_err(Failure::input)?;
     interrupt::install();
 
+    let allow_blow_up = args.allow_blow_up;
     let plan = run::RunPlan {
         scene,
         // Without --until a replay runs to the recording's end.
@@ -279,6 +281,21 @@ fn run(args: RunArgs) -> Result<(), Failure> {
             message: format!(
                 "the simulation produced non-finite values at step {step} (t = {time:.4} s) and \
                  was stopped; the output up to that step is in `{}`",
+                plan.out.display()
+            ),
+        });
+    }
+    // A blow-up without NaN (`blowup`): energy the steps created, or a solve stuck at its
+    // cap. Said as a warning when seen; the run is a failure unless the user accepts it.
+    if let (Some(b), false) = (&outcome.blow_up, allow_blow_up) {
+        return Err(Failure {
+            code: SIMULATION_FAILED,
+            message: format!(
+                "the simulation blew up at step {} (t = {:.4} s): {}; the output is complete in \
+                 `{}` (`--allow-blow-up` accepts such a run)",
+                b.step,
+                b.time,
+                b.what,
                 plan.out.display()
             ),
         });

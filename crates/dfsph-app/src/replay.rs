@@ -105,6 +105,8 @@ pub struct ReplayDriver {
     /// `--until` was given: run by simulated time instead of to the recording's end.
     by_time: bool,
     applied: usize,
+    /// The last `before_step` applied an action.
+    acted: bool,
     rejected: usize,
     resets: usize,
     /// Fingerprint of the final state, when the run reached the recording's end.
@@ -120,6 +122,7 @@ impl ReplayDriver {
             end: recording.steps(),
             by_time,
             applied: 0,
+            acted: false,
             rejected: 0,
             resets: 0,
             final_fingerprint: None,
@@ -150,9 +153,15 @@ impl ReplayDriver {
 
 impl Driver for ReplayDriver {
     fn before_step(&mut self, sim: &mut Simulation) -> Result<bool> {
+        let applied = self.applied;
         let reset = self.apply_due(sim);
+        self.acted = self.applied > applied;
         self.done += 1;
         Ok(reset)
+    }
+
+    fn acted(&self) -> bool {
+        self.acted
     }
 
     fn finished(&self) -> bool {

@@ -10,6 +10,7 @@ use dfsph::{Scene, Simulation};
 use dfsph_io::StatsCsvWriter;
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::blowup::{BlowUp, BlowUpWatch};
 use crate::cli::Format;
 use crate::output::{FrameWriter, Manifest};
 use crate::probes_csv::ProbesCsvWriter;
@@ -49,6 +50,8 @@ pub struct RunOutcome {
     /// Ctrl-C (or SIGTERM, SIGHUP) stopped the run early; the files are complete up to that
     /// step.
     pub interrupted: bool,
+    /// The first blow-up the watch saw ([`crate::blowup`]); the run went on to the end.
+    pub blow_up: Option<BlowUp>,
 }
 
 /// Something that acts on the simulation between steps (`run --replay`: a recording).
@@ -60,6 +63,11 @@ pub trait Driver {
     fn finished(&self) -> bool;
     /// Called once after the last step, before the final snapshot. Returns true on a reset.
     fn after_last_step(&mut self, sim: &mut Simulation) -> Result<bool>;
+    /// Whether the last `before_step` applied an action (the blow-up watch then takes the
+    /// energy after that step as its new reference).
+    fn acted(&self) -> bool {
+        false
+    }
     /// Fraction done, for the progress bar, when the driver knows better than `until`.
     fn progress(&self) -> Option<f64> {
         None
@@ -147,6 +155,7 @@ pub fn execute_with(
 
     let mut broke_at = None;
     let mut interrupted = false;
+    let mut watch = BlowUpWatch::new(&sim);
     loop {
         if crate::interrupt::requested() {
             interrupted = true;
@@ -157,6 +166,9 @@ pub fn execute_with(
         }
         if driver.before_step(&mut sim)? {
             // Reset: simulated time starts again at 0; snapshot the new start.
+            let found = watch.found.take();
+            watch = BlowUpWatch::new(&sim);
+            watch.found = found;
             frames.new_epoch();
             schedule = SnapshotSchedule::new(plan.every);
             frames.write(&sim, &mut manifest)?;
@@ -168,6 +180,19 @@ pub fn execute_with(
             break;
         }
         let s = *sim.step();
+        let seen = watch.found.is_some();
+        watch.after_step(&sim, &s, driver.acted());
+        if let (false, Some(b)) = (seen, &watch.found) {
+            // Said at once: a long run goes on writing what may be worthless.
+            progress.suspend(|| {
+                eprintln!(
+                    "warning: step {} (t = {:.4} s): {}",
+                    b.step,
+                    b.time,
+                    crate::terminal_safe(&b.what)
+                )
+            });
+        }
         stats.push(&s)?;
         if let Some(p) = probes.as_mut() {
             p.push(&sim)?;
@@ -218,6 +243,7 @@ pub fn execute_with(
         non_finite: sim.total_non_finite(),
         broke_at,
         interrupted,
+        blow_up: watch.found,
     })
 }
 

@@ -796,3 +796,58 @@ fn a_run_that_clamps_particles_exits_2_after_writing_its_output() {
         assert!(out_dir.join(file).is_file(), "{file} missing");
     }
 }
+
+/// A run whose density solve stops at its cap step after step (here one iteration allowed)
+/// has not met its tolerances: it warns when it sees it, writes everything, and exits with 2;
+/// `--allow-blow-up` accepts it (issue 46: such runs exited 0).
+#[test]
+fn a_run_that_blows_up_without_nan_warns_and_exits_2_unless_allowed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = write_scene(
+        tmp.path(),
+        "capped.json",
+        br#"{"particle_radius": 0.05, "solver": {"min_iterations": 1, "max_iterations": 1}}"#,
+    );
+    for allow in [false, true] {
+        let out_dir = tmp.path().join(format!("out-{allow}"));
+        let mut args = vec![
+            "run",
+            scene.to_str().unwrap(),
+            "--until",
+            "0.2",
+            "--out",
+            out_dir.to_str().unwrap(),
+        ];
+        if allow {
+            args.push("--allow-blow-up");
+        }
+        let out = dfsph2d(&args);
+        let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+        assert_eq!(
+            out.status.code(),
+            Some(if allow { 0 } else { 2 }),
+            "{stderr}"
+        );
+        let lines: Vec<&str> = stderr.lines().collect();
+        assert!(
+            lines[0].starts_with("warning: step 20 (t = ")
+                && lines[0].contains("ended at its cap of 1 iterations in 20 steps in a row"),
+            "{stderr}"
+        );
+        if allow {
+            assert_eq!(lines.len(), 1, "{stderr}");
+        } else {
+            assert_eq!(lines.len(), 2, "{stderr}");
+            assert!(
+                lines[1].starts_with("error: the simulation blew up at step 20 (t = ")
+                    && lines[1].ends_with("(`--allow-blow-up` accepts such a run)"),
+                "{stderr}"
+            );
+        }
+        // The run went on to --until and wrote everything.
+        let stats = csv_rows(&out_dir.join("stats.csv"));
+        let last_time: f64 = stats.last().unwrap()[1].parse().unwrap();
+        assert!(last_time >= 0.2, "{last_time} {stdout}");
+        assert!(out_dir.join("particles/00004.csv").is_file());
+    }
+}

@@ -475,7 +475,6 @@ impl Simulation {
             spacing: self.spacing,
             dt,
             gravity: self.gravity,
-            flow_speed: self.stats.max_speed as f32,
             settings: &self.settings,
             nb: Neighborhood::new(&self.fluid_lists, &self.boundary_lists, &self.pair_cache),
             boundary: &self.boundary,
@@ -1129,6 +1128,31 @@ impl Simulation {
     }
 
     // ---- Read access: the library API used by the viewer, the CLI and embedders. ----
+
+    /// The mechanical energy of the water and the rigid bodies, J per metre of depth:
+    /// kinetic `½ m |v|²` plus potential `−m g·(x − x0)`, x0 the tank's lower-left corner
+    /// (a body's spin is left out; bodies held fixed do not count). In a closed tank without actions it can only fall
+    /// (viscosity and the solves dissipate); a rise beyond the solver's tolerance is energy
+    /// the step created (`dfsph2d run` reports it as a blow-up).
+    pub fn mechanical_energy(&self) -> f64 {
+        let (origin, g) = (self.tank_interior().0, self.gravity);
+        let m = self.particle_mass() as f64;
+        let fluid = crate::reduce::sum_and_max_of(self.fluid.len(), |i| {
+            let (x, v) = (self.fluid.position[i], self.fluid.velocity[i]);
+            m * (0.5 * v.length_squared() as f64 - g.dot(x - origin) as f64)
+        })
+        .0;
+        let bodies: f64 = self
+            .rigid_bodies()
+            .iter()
+            .filter(|b| b.spec.joint != Some(crate::rigid::BodyJoint::Fixed))
+            .map(|b| {
+                let m = b.mass as f64;
+                m * (0.5 * b.velocity.length_squared() as f64 - g.dot(b.position - origin) as f64)
+            })
+            .sum();
+        fluid + bodies
+    }
 
     /// The rigid bodies as they stand, in order (scene's first, then those added).
     pub fn rigid_bodies(&self) -> Vec<RigidBodyState> {

@@ -25,8 +25,6 @@ pub struct StepContext<'a> {
     pub dt: f32,
     /// Gravity, m/s².
     pub gravity: Vec2,
-    /// The fastest fluid particle's speed after the previous step, m/s.
-    pub flow_speed: f32,
     /// The stopping rules and safeguards.
     pub settings: &'a SolverSettings,
     /// Neighbour lists and the kernel gradients cached for the step.

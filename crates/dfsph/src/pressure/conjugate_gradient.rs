@@ -109,19 +109,18 @@ pub const SURFACE_DEFICIT: f32 = 0.02;
 
 /// The velocity error (m/s, root mean square) at which the solve may stop: the speed that
 /// would create the density tolerance over one step of `step.dt` at spacing d, and at most
-/// [`SolverSettings::gravity_impulse_tolerance`] of the gravity impulse `g·Δt` (where g > 0)
-/// or [`SolverSettings::flow_speed_tolerance`] of `step.flow_speed` (the fastest particle's
-/// speed), whichever is larger.
+/// [`SolverSettings::gravity_impulse_tolerance`] of the gravity impulse `g·Δt` (where g > 0).
+/// Absolute: how fast the fastest particle moves does not loosen it (a falling drop would
+/// loosen the solve in the deep water it has not reached yet).
 ///
 /// [`SolverSettings::gravity_impulse_tolerance`]: crate::settings::SolverSettings::gravity_impulse_tolerance
-/// [`SolverSettings::flow_speed_tolerance`]: crate::settings::SolverSettings::flow_speed_tolerance
 pub(crate) fn velocity_tolerance(step: &StepContext) -> f32 {
     let settings = step.settings;
     let (d, g, dt) = (step.spacing, step.gravity.length(), step.dt);
     let from_density = (settings.density.tolerance_pct / 100.0) as f32 * d / dt;
     let from_gravity = settings.gravity_impulse_tolerance * g * dt;
     if from_gravity > 0.0 {
-        from_density.min(from_gravity.max(settings.flow_speed_tolerance * step.flow_speed))
+        from_density.min(from_gravity)
     } else {
         from_density
     }
