@@ -10,7 +10,7 @@ use crate::boundary::{Body, BodyId, BoundarySamples};
 use crate::forces::PointerForce;
 use crate::neighbors::Grid;
 use crate::rigid::{BodySpec, MAX_BODIES};
-use crate::scene::{Scene, SolverParams, TimeStepParams, ViscosityParams};
+use crate::scene::{Packing, Scene, SolverParams, TimeStepParams, ViscosityParams};
 use crate::simulation::Simulation;
 
 /// One user action. Held actions (`ShakeTank`, `Push`) stay in force until replaced.
@@ -259,23 +259,41 @@ impl Simulation {
             return 0;
         }
         let (lo, hi) = self.tank_interior();
+        // Poured water takes the scene's lattice (`packing`), anchored where the scene's
+        // blocks are: on the hexagonal one it rests on water of the same lattice, where square
+        // sites would rearrange under its weight.
+        let candidates: Vec<Vec2> = match self.scene.packing {
+            Packing::Square => {
+                let reach = (radius / d).ceil() as i32;
+                (-reach..=reach)
+                    .flat_map(|j| {
+                        (-reach..=reach).map(move |i| at + Vec2::new(i as f32, j as f32) * d)
+                    })
+                    .collect()
+            }
+            Packing::Hexagonal => {
+                let corner = |p: Vec2| [p.x as f64, p.y as f64];
+                crate::packing::sites(
+                    corner(lo),
+                    corner(at - Vec2::splat(radius)),
+                    corner(at + Vec2::splat(radius)),
+                    d as f64,
+                    0.0,
+                )
+            }
+        };
         let lo = lo + Vec2::splat(0.5 * d);
         let hi = hi - Vec2::splat(0.5 * d);
-        let reach = (radius / d).ceil() as i32;
-        let mut sites = Vec::new();
-        for j in -reach..=reach {
-            for i in -reach..=reach {
-                let p = at + Vec2::new(i as f32, j as f32) * d;
-                if (p - at).length() <= radius + 1.0e-6
+        let mut sites: Vec<Vec2> = candidates
+            .into_iter()
+            .filter(|&p| {
+                (p - at).length() <= radius + 1.0e-6
                     && p.x >= lo.x
                     && p.x <= hi.x
                     && p.y >= lo.y
                     && p.y <= hi.y
-                {
-                    sites.push(p);
-                }
-            }
-        }
+            })
+            .collect();
         // Keep sites clear of existing fluid and walls: closer than 0.9 d would start the new
         // particles badly compressed.
         let clear = 0.9 * d;
@@ -427,6 +445,49 @@ mod tests {
         s.particle_radius = radius;
         s.obstacles.push(scene::Obstacle::Rect { min, max });
         s
+    }
+
+    /// Poured water takes the scene's lattice: on the hexagonal packing each new particle's
+    /// nearest new neighbour is a row spacing (1.0746 d) away, on the square one d.
+    #[test]
+    fn poured_water_takes_the_scenes_packing() {
+        for (packing, nearest) in [("square", 1.0), ("hexagonal", crate::packing::ROW_SPACING)] {
+            let scene = scene::Scene::from_json(&format!(
+                r#"{{"particle_radius": 0.01, "tank": {{"min": [0, 0], "max": [1, 1]}},
+                    "fluid": [{{"min": [0, 0], "max": [1, 0.2]}}], "packing": "{packing}"}}"#
+            ))
+            .unwrap();
+            let mut sim = Simulation::new(&scene).unwrap();
+            let before = sim.fluid_count();
+            let outcome = sim.apply(&Action::Emit {
+                at: Vec2::new(0.5, 0.7),
+                radius: 0.1,
+                velocity: Vec2::ZERO,
+            });
+            assert_eq!(outcome.rejected, None);
+            let d = sim.spacing();
+            let new = &sim.positions()[before..];
+            // Roughly the disc's area over the area per particle, d².
+            let expected = std::f32::consts::PI * 0.1 * 0.1 / (d * d);
+            assert!(
+                (new.len() as f32 - expected).abs() < 0.1 * expected,
+                "{packing}: {} particles",
+                new.len()
+            );
+            for (i, p) in new.iter().enumerate() {
+                let closest = new
+                    .iter()
+                    .enumerate()
+                    .filter(|&(k, _)| k != i)
+                    .map(|(_, q)| (*q - *p).length())
+                    .fold(f32::INFINITY, f32::min);
+                assert!(
+                    (closest / d - nearest as f32).abs() < 1.0e-3,
+                    "{packing}: nearest neighbour at {} d",
+                    closest / d
+                );
+            }
+        }
     }
 
     #[test]
