@@ -561,11 +561,19 @@ impl Scene {
         }
         for (k, obstacle) in self.obstacles.iter().enumerate() {
             let mut walls = crate::boundary::BoundarySamples::default();
-            walls.add_obstacle(obstacle, d, 1);
+            let hexagonal = (self.packing == Packing::Hexagonal).then_some(self.tank.min);
+            walls.add_obstacle(obstacle, d, hexagonal, 1);
+            // On the hexagonal lattice a box's faces stand up to half a lattice step inside
+            // the box (`BoundarySamples::add_hexagonal_rect`), and a body resting on one
+            // stands there too.
+            let face = match hexagonal {
+                Some(_) => 0.5 * crate::packing::ROW_SPACING * self.spacing(),
+                None => 0.0,
+            };
             for (i, distance) in distances.iter().enumerate() {
                 let in_box = match obstacle {
                     Obstacle::Rect { min, max } => outlines[i].iter().any(|p| {
-                        let (p, q) = (p.as_dvec2(), 0.25 * self.spacing());
+                        let (p, q) = (p.as_dvec2(), 0.25 * self.spacing() + face);
                         p.x > min[0] + q && p.x < max[0] - q && p.y > min[1] + q && p.y < max[1] - q
                     }),
                     _ => false,

@@ -254,7 +254,7 @@ impl Simulation {
         for obstacle in &scene.obstacles {
             let body = sim.bodies.len() as BodyId;
             sim.bodies.push(Body::default());
-            samples.add_obstacle(obstacle, d, body);
+            samples.add_obstacle(obstacle, d, hexagonal.then_some(scene.tank.min), body);
         }
         for spec in &scene.bodies {
             sim.add_rigid_body(spec);

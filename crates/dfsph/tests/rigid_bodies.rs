@@ -527,12 +527,27 @@ fn bodies_land_on_obstacles_and_drawn_walls() {
     }
     let b = sim.rigid_bodies();
     let d = sim.spacing();
-    // The box rests on the block's top (0.4 m), the circle on the wall: the wall's particle
-    // rows lie d/2 either side of its line, and water would stand d/2 beyond them.
+    // The box rests on the block's top, the circle on the wall: the wall's particle rows lie
+    // d/2 either side of its line, and water would stand d/2 beyond them. The block's top is
+    // d/2 above its top row of particles: 0.4 m on the square grid, within half a row of it
+    // on the hexagonal lattice this scene of water at rest gets.
+    let block_top = sim
+        .boundary_positions()
+        .iter()
+        .zip(sim.boundary_bodies())
+        .filter(|&(p, _)| p.x > 0.45 && p.x < 0.55)
+        .filter(|&(_, &body)| body != 0 && sim.rigid_body_of(body).is_none())
+        .map(|(p, _)| p.y)
+        .fold(0.0f32, f32::max)
+        + 0.5 * d;
+    assert!(
+        (block_top - 0.4).abs() < 0.5 * d,
+        "block top at {block_top}"
+    );
     let box_bottom = lowest(&b[0]);
     assert!(
-        (box_bottom - 0.4).abs() < 0.2 * d,
-        "box bottom at {box_bottom}"
+        (box_bottom - block_top).abs() < 0.2 * d,
+        "box bottom at {box_bottom}, the block's top at {block_top}"
     );
     let circle_bottom = lowest(&b[1]);
     assert!(

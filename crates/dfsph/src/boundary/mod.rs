@@ -140,12 +140,24 @@ impl BoundarySamples {
         }
     }
 
-    /// The wall particles of a scene's obstacle.
-    pub fn add_obstacle(&mut self, obstacle: &crate::scene::Obstacle, d: f32, body: BodyId) {
+    /// The wall particles of a scene's obstacle. `hexagonal_anchor` is the corner the
+    /// scene's hexagonal lattice is anchored at (the tank's lower-left), `None` on the square
+    /// packing: a box is then sampled on the fluid's own lattice
+    /// ([`Self::add_hexagonal_rect`]), as the tank is.
+    pub fn add_obstacle(
+        &mut self,
+        obstacle: &crate::scene::Obstacle,
+        d: f32,
+        hexagonal_anchor: Option<[f64; 2]>,
+        body: BodyId,
+    ) {
         use crate::scene::Obstacle;
         let v = |p: &[f64; 2]| Vec2::new(p[0] as f32, p[1] as f32);
         match obstacle {
-            Obstacle::Rect { min, max } => self.add_rect(v(min), v(max), d, body),
+            Obstacle::Rect { min, max } => match hexagonal_anchor {
+                Some(anchor) => self.add_hexagonal_rect(anchor, *min, *max, d as f64, body),
+                None => self.add_rect(v(min), v(max), d, body),
+            },
             Obstacle::Polyline { points } => {
                 let pts: Vec<Vec2> = points.iter().map(v).collect();
                 self.add_polyline(&pts, d, body)
@@ -174,6 +186,53 @@ impl BoundarySamples {
                     self.bodies.push(body);
                     self.lattice_area.push(None);
                 }
+            }
+        }
+    }
+
+    /// A solid box for the hexagonal packing: the sites of the fluid's hexagonal lattice
+    /// (anchored at `anchor`) in its two outermost layers, each with the fluid's area d², so
+    /// that water beside the box sees its own lattice continue: ρ0·g·(H − y) is then the
+    /// equilibrium beside the box as beside the tank's walls (a box sampled on the square grid
+    /// next to hexagonal water moved a pool 1.5 m deep at 4.9 m/s beside its face). The outer
+    /// layer on each side is the lattice's row (or column of sites) nearest to where the square
+    /// grid's would be, d/2 inside the face, so a face stands within half a lattice step of
+    /// where the scene puts it. A box thinner than two spacings either way keeps the square
+    /// grid, which covers it whatever its size.
+    pub fn add_hexagonal_rect(
+        &mut self,
+        anchor: [f64; 2],
+        lo: [f64; 2],
+        hi: [f64; 2],
+        d: f64,
+        body: BodyId,
+    ) {
+        let (w, h) = (hi[0] - lo[0], hi[1] - lo[1]);
+        if w < 2.0 * d || h < 2.0 * d {
+            let v = |p: [f64; 2]| Vec2::new(p[0] as f32, p[1] as f32);
+            return self.add_rect(v(lo), v(hi), d as f32, body);
+        }
+        // Where the square grid's outer layer lies, and half a lattice step either way.
+        let (inner_lo, inner_hi) = (
+            [lo[0] + 0.5 * d, lo[1] + 0.5 * d],
+            [hi[0] - 0.5 * d, hi[1] - 0.5 * d],
+        );
+        let half = [
+            0.5 * crate::packing::ROW_SPACING * d,
+            0.5 * crate::packing::ROW_DISTANCE * d,
+        ];
+        let reach_lo = [inner_lo[0] - half[0], inner_lo[1] - half[1]];
+        let reach_hi = [inner_hi[0] + half[0], inner_hi[1] + half[1]];
+        for p in crate::packing::sites(anchor, reach_lo, reach_hi, d, 0.0) {
+            let (x, y) = (p.x as f64, p.y as f64);
+            let depth = (x - inner_lo[0])
+                .min(inner_hi[0] - x)
+                .min(y - inner_lo[1])
+                .min(inner_hi[1] - y);
+            if depth < 1.5 * d {
+                self.positions.push(p);
+                self.bodies.push(body);
+                self.lattice_area.push(Some((d * d) as f32));
             }
         }
     }
