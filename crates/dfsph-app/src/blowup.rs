@@ -75,6 +75,15 @@ impl BlowUpWatch {
         }
     }
 
+    /// Start again after a reset (a new scene, the clock at 0), keeping what was found.
+    pub fn restart(&mut self, sim: &Simulation) {
+        let found = self.found.take();
+        *self = Self {
+            found,
+            ..Self::new(sim)
+        };
+    }
+
     /// Look at the step `stats` just taken; `acted` says whether an action applied before it.
     /// After an action, and while a held one is in force (a push or pull, a shake, a dragged
     /// body, the tank springing back to its place), the energy reference starts again from

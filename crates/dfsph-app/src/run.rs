@@ -166,9 +166,7 @@ pub fn execute_with(
         }
         if driver.before_step(&mut sim)? {
             // Reset: simulated time starts again at 0; snapshot the new start.
-            let found = watch.found.take();
-            watch = BlowUpWatch::new(&sim);
-            watch.found = found;
+            watch.restart(&sim);
             frames.new_epoch();
             schedule = SnapshotSchedule::new(plan.every);
             frames.write(&sim, &mut manifest)?;

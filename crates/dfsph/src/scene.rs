@@ -479,6 +479,12 @@ impl Scene {
         (0.5 * (w * h / MAX_LATTICE_SITES).sqrt(), 0.25 * w.min(h))
     }
 
+    /// The corner the hexagonal lattice of the fluid blocks, the tank's walls and the boxes
+    /// is anchored at (the tank's lower-left, m); `None` on the square packing.
+    pub fn hexagonal_anchor(&self) -> Option<[f64; 2]> {
+        (self.packing == Packing::Hexagonal).then_some(self.tank.min)
+    }
+
     /// Lattice spacing d = 2r, metres.
     pub fn spacing(&self) -> f64 {
         2.0 * self.particle_radius
@@ -559,17 +565,16 @@ impl Scene {
                 }
             }
         }
+        // On the hexagonal lattice a box's faces stand up to half a lattice step inside the
+        // box (`BoundarySamples::add_hexagonal_rect`), and a body resting on one stands there
+        // too.
+        let face = match self.packing {
+            Packing::Hexagonal => 0.5 * crate::packing::ROW_SPACING * self.spacing(),
+            Packing::Square => 0.0,
+        };
         for (k, obstacle) in self.obstacles.iter().enumerate() {
             let mut walls = crate::boundary::BoundarySamples::default();
-            let hexagonal = (self.packing == Packing::Hexagonal).then_some(self.tank.min);
-            walls.add_obstacle(obstacle, d, hexagonal, 1);
-            // On the hexagonal lattice a box's faces stand up to half a lattice step inside
-            // the box (`BoundarySamples::add_hexagonal_rect`), and a body resting on one
-            // stands there too.
-            let face = match hexagonal {
-                Some(_) => 0.5 * crate::packing::ROW_SPACING * self.spacing(),
-                None => 0.0,
-            };
+            walls.add_obstacle(obstacle, d, self.hexagonal_anchor(), 1);
             for (i, distance) in distances.iter().enumerate() {
                 let in_box = match obstacle {
                     Obstacle::Rect { min, max } => outlines[i].iter().any(|p| {

@@ -254,7 +254,7 @@ impl Simulation {
         for obstacle in &scene.obstacles {
             let body = sim.bodies.len() as BodyId;
             sim.bodies.push(Body::default());
-            samples.add_obstacle(obstacle, d, hexagonal.then_some(scene.tank.min), body);
+            samples.add_obstacle(obstacle, d, scene.hexagonal_anchor(), body);
         }
         for spec in &scene.bodies {
             sim.add_rigid_body(spec);
@@ -1131,9 +1131,9 @@ impl Simulation {
 
     /// The mechanical energy of the water and the rigid bodies, J per metre of depth:
     /// kinetic `½ m |v|²` plus potential `−m g·(x − x0)`, x0 the tank's lower-left corner
-    /// (a body's spin is left out; bodies held fixed do not count). In a closed tank without actions it can only fall
-    /// (viscosity and the solves dissipate); a rise beyond the solver's tolerance is energy
-    /// the step created (`dfsph2d run` reports it as a blow-up).
+    /// (a body's spin is left out; bodies held fixed do not count). In a closed tank without
+    /// actions it can only fall (viscosity and the solves dissipate); a rise beyond the
+    /// solver's tolerance is energy the step created (`dfsph2d run` reports it as a blow-up).
     pub fn mechanical_energy(&self) -> f64 {
         let (origin, g) = (self.tank_interior().0, self.gravity);
         let m = self.particle_mass() as f64;
@@ -1142,15 +1142,11 @@ impl Simulation {
             m * (0.5 * v.length_squared() as f64 - g.dot(x - origin) as f64)
         })
         .0;
-        let bodies: f64 = self
-            .rigid_bodies()
-            .iter()
-            .filter(|b| b.spec.joint != Some(crate::rigid::BodyJoint::Fixed))
-            .map(|b| {
-                let m = b.mass as f64;
-                m * (0.5 * b.velocity.length_squared() as f64 - g.dot(b.position - origin) as f64)
-            })
-            .sum();
+        // Read from the bodies in place: `rigid_bodies()` would build every outline.
+        let bodies = self
+            .rigid
+            .as_ref()
+            .map_or(0.0, |r| r.mechanical_energy(g, origin));
         fluid + bodies
     }
 

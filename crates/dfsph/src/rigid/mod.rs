@@ -503,6 +503,22 @@ impl RigidBodies {
             .collect()
     }
 
+    /// The mechanical energy of the bodies that can move, J per metre of depth: `½ m |v|²`
+    /// of the centre plus `−m g·(x − origin)` (spin left out; a body held fixed by a joint
+    /// does not count).
+    pub fn mechanical_energy(&self, gravity: Vec2, origin: Vec2) -> f64 {
+        self.bodies
+            .iter()
+            .filter(|b| b.spec.joint != Some(BodyJoint::Fixed))
+            .map(|b| {
+                let rb = &self.world.bodies[b.handle];
+                let (x, v) = (gv(rb.translation()), gv(rb.linvel()));
+                rb.mass() as f64
+                    * (0.5 * v.length_squared() as f64 - gravity.dot(x - origin) as f64)
+            })
+            .sum()
+    }
+
     /// Total linear momentum of the bodies, kg·m/s per metre of depth.
     pub fn momentum(&self) -> Vec2 {
         self.bodies
