@@ -17,7 +17,7 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
 use dfsph::blocked::Gather;
 use dfsph::boundary::{volumes, wall_volume_correction, AkinciWalls, BoundaryModel};
-use dfsph::kernel::CubicSpline;
+use dfsph::kernel::Kernel;
 use dfsph::neighbors::{Grid, NeighborLists};
 use dfsph::particles::{BoundaryParticles, FluidParticles};
 use dfsph::pressure::jacobi::{self, JacobiScratch};
@@ -31,7 +31,7 @@ use dfsph::{Simulation, Vec2};
 
 /// Everything the passes read, rebuilt through the public API from a running simulation.
 struct State {
-    kernel: CubicSpline,
+    kernel: Kernel,
     volume: f32,
     fluid: FluidParticles,
     boundary: BoundaryParticles,

@@ -324,7 +324,8 @@ impl Simulation {
         let size = hi - lo;
         let near = |p: &Vec2| p.cmpge(lo - size).all() && p.cmple(hi + size).all();
         let length: f32 = polyline.windows(2).map(|w| (w[1] - w[0]).length()).sum();
-        let samples = 2.0 * (length / self.spacing + polyline.len() as f32);
+        let layers = crate::boundary::wall_layers(&self.kernel, self.spacing) as f32;
+        let samples = layers * (length / self.spacing + polyline.len() as f32);
         polyline.iter().all(near) && samples <= MAX_WALL_PARTICLES as f32
     }
 
@@ -339,7 +340,8 @@ impl Simulation {
         });
         self.drawn_walls.push(polyline.to_vec());
         self.walls_moved_for_bodies = true;
-        let mut samples = BoundarySamples::default();
+        let mut samples =
+            BoundarySamples::new(crate::boundary::wall_layers(&self.kernel, self.spacing));
         samples.add_polyline(polyline, self.spacing, body);
         // A wall drawn through a rigid body would trap it: rapier pushes the body out of the
         // wall's balls (radius d/2, `RigidBodies::set_walls`) against the floor or another

@@ -29,7 +29,7 @@ use std::ops::Range;
 
 use crate::par::prelude::*;
 
-use crate::kernel::CubicSpline;
+use crate::kernel::Kernel;
 use crate::neighbors::NeighborLists;
 use crate::simd::{lane_kernel, SimdPath};
 
@@ -678,7 +678,7 @@ impl BlockedPairs {
         pos: &[Vec2],
         vel: &[Vec2],
         dt: f32,
-        kernel: &CubicSpline,
+        kernel: &Kernel,
         volume: f32,
         start: f32,
     ) -> [f32; LANES] {
@@ -733,7 +733,7 @@ impl BlockedPairs {
         b: usize,
         pos: &[Vec2],
         vel: &[Vec2],
-        kernel: &CubicSpline,
+        kernel: &Kernel,
         eps2: f32,
         laplacian: bool,
     ) -> ([Vec2; LANES], [Vec2; LANES]) {
@@ -914,13 +914,13 @@ impl BlockWriter<'_> {
     /// Returns the per-lane sums of the density pass over the fluid neighbours, started from
     /// `start` (the particle's own `V·W(0)`): the same expressions, in the same order, as
     /// summing `V·W_ij`, `V·∇W_ij` and `|V·∇W_ij|²` pair by pair with
-    /// [`CubicSpline::w_and_grad`], so both paths give identical bits.
+    /// [`Kernel::w_and_grad`], so both paths give identical bits.
     pub fn fill_block(
         &mut self,
         b: usize,
         lists: &NeighborLists,
         pos: &[Vec2],
-        kernel: &CubicSpline,
+        kernel: &Kernel,
         volume: f32,
         start: f32,
     ) -> FluidSums {

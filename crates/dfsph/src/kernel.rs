@@ -1,32 +1,97 @@
-//! The 2D cubic spline kernel (Monaghan 1992) written with support radius `h`, as used by
-//! Bender & Koschier and SPlisHSPlasH: `W(r) = k·(6q³ − 6q² + 1)` for `q = r/h ≤ ½`,
-//! `W(r) = 2k·(1 − q)³` for `½ < q ≤ 1`, `W = 0` beyond, with the 2D normalisation
-//! `k = 40 / (7π h²)` so that `∫ W dA = 1`.
+//! The smoothing kernels, written with support radius `h` (`W = 0` for `r ≥ h`), `q = r/h`:
+//!
+//! - [`KernelShape::CubicSpline`]: Monaghan's (1992) cubic spline as Bender & Koschier and
+//!   SPlisHSPlasH write it, `W = k·(6q³ − 6q² + 1)` for `q ≤ ½`, `W = 2k·(1 − q)³` for
+//!   `½ < q ≤ 1`, `k = 40 / (7π h²)`.
+//! - [`KernelShape::WendlandC2`]: Wendland's (1995) C2 function in 2D,
+//!   `W = k·(1 − q)⁴·(1 + 4q)`, `k = 7 / (π h²)` (Dehnen & Aly 2012, Table 1). Unlike the
+//!   cubic spline it does not pair particles at wide supports: its gradient grows all the way
+//!   in to `q = 0`.
+//!
+//! Both integrate to one over the plane.
 
 use glam::Vec2;
+use serde::{Deserialize, Serialize};
 
-/// Cubic spline kernel with a precomputed support radius and normalisation constants.
+/// Which smoothing kernel the solver uses, and with it the support in particle spacings
+/// (the scene's `solver.kernel`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum KernelShape {
+    /// The cubic spline at support 2d (about 13 neighbours on the hexagonal lattice).
+    #[default]
+    CubicSpline,
+    /// Wendland C2 at support 3.5d (about 40 neighbours): a particle's density depends less on
+    /// how its neighbours are arranged, so pressure resists shear less (docs/deep-columns.md).
+    WendlandC2,
+}
+
+impl KernelShape {
+    /// The support radius in particle spacings d. The cubic spline's gradient peaks at a
+    /// third of its support, so beyond about 2d it pairs particles; Wendland C2 does not,
+    /// and at 3.5d its dam break drains and its waves run as the measurements in
+    /// docs/deep-columns.md show.
+    pub fn support_in_spacings(self) -> f64 {
+        match self {
+            KernelShape::CubicSpline => 2.0,
+            KernelShape::WendlandC2 => 3.5,
+        }
+    }
+
+    /// The name a scene file uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            KernelShape::CubicSpline => "cubic_spline",
+            KernelShape::WendlandC2 => "wendland_c2",
+        }
+    }
+}
+
+/// A smoothing kernel with a precomputed support radius and normalisation constants.
 #[derive(Clone, Copy, Debug)]
-pub struct CubicSpline {
+pub struct Kernel {
+    shape: KernelShape,
     h: f32,
     inv_h: f32,
-    /// `k = 40 / (7π h²)`.
+    /// `W`'s constant: `40 / (7π h²)` (cubic spline) or `7 / (π h²)` (Wendland C2).
     k: f32,
-    /// `l = 240 / (7π h²)`, the derivative's constant (`6k`).
+    /// `dW/dq`'s constant: `6k` (cubic spline: `l·q·(3q − 2)`, `−l·(1 − q)²`) or `−20k`
+    /// (Wendland C2: `l·q·(1 − q)³`).
     l: f32,
 }
 
-impl CubicSpline {
-    /// A kernel with support radius `h` (metres): `W(r) = 0` for `r ≥ h`.
-    pub fn new(h: f32) -> Self {
+impl Kernel {
+    /// The cubic spline with support radius `h` (metres).
+    pub fn cubic_spline(h: f32) -> Self {
+        Self::new(KernelShape::CubicSpline, h)
+    }
+
+    /// A kernel of `shape` with support radius `h` (metres): `W(r) = 0` for `r ≥ h`.
+    pub fn new(shape: KernelShape, h: f32) -> Self {
         let pi = std::f32::consts::PI;
-        let k = 40.0 / (7.0 * pi * h * h);
+        let (k, l) = match shape {
+            KernelShape::CubicSpline => {
+                let k = 40.0 / (7.0 * pi * h * h);
+                (k, 6.0 * k)
+            }
+            KernelShape::WendlandC2 => {
+                let k = 7.0 / (pi * h * h);
+                (k, -20.0 * k)
+            }
+        };
         Self {
+            shape,
             h,
             inv_h: 1.0 / h,
             k,
-            l: 6.0 * k,
+            l,
         }
+    }
+
+    /// Which kernel this is.
+    #[inline]
+    pub fn shape(&self) -> KernelShape {
+        self.shape
     }
 
     /// Support radius in metres.
@@ -44,25 +109,41 @@ impl CubicSpline {
     /// `W` at `q = r/h`.
     #[inline]
     fn w_of_q(&self, q: f32) -> f32 {
-        if q <= 0.5 {
-            let q2 = q * q;
-            self.k * (6.0 * q2 * q - 6.0 * q2 + 1.0)
-        } else if q < 1.0 {
-            let a = 1.0 - q;
-            2.0 * self.k * a * a * a
-        } else {
-            0.0
+        match self.shape {
+            KernelShape::CubicSpline => {
+                if q <= 0.5 {
+                    let q2 = q * q;
+                    self.k * (6.0 * q2 * q - 6.0 * q2 + 1.0)
+                } else if q < 1.0 {
+                    let a = 1.0 - q;
+                    2.0 * self.k * a * a * a
+                } else {
+                    0.0
+                }
+            }
+            KernelShape::WendlandC2 => {
+                if q < 1.0 {
+                    wendland_w(self.k, q)
+                } else {
+                    0.0
+                }
+            }
         }
     }
 
     /// `dW/dq` for `0 ≤ q < 1`.
     #[inline]
     fn dw_dq(&self, q: f32) -> f32 {
-        if q <= 0.5 {
-            self.l * q * (3.0 * q - 2.0)
-        } else {
-            let a = 1.0 - q;
-            -self.l * a * a
+        match self.shape {
+            KernelShape::CubicSpline => {
+                if q <= 0.5 {
+                    self.l * q * (3.0 * q - 2.0)
+                } else {
+                    let a = 1.0 - q;
+                    -self.l * a * a
+                }
+            }
+            KernelShape::WendlandC2 => wendland_dw(self.l, q),
         }
     }
 
@@ -103,10 +184,10 @@ impl CubicSpline {
         (self.w_of_q(q), r * (self.dw_dq(q) * self.inv_h / rl))
     }
 
-    /// [`Self::w_of_q`] without branches: each piece of the spline evaluated, one kept, with
-    /// the same operations, so the same bits. The lane forms below are built on it.
+    /// The cubic spline's [`Self::w_of_q`] without branches: each piece evaluated, one
+    /// kept, with the same operations, so the same bits. The lane forms below are built on it.
     #[inline(always)]
-    fn w_of_q_selected(&self, q: f32) -> f32 {
+    fn cubic_w_selected(&self, q: f32) -> f32 {
         let (q2, a) = (q * q, 1.0 - q);
         let inner = self.k * (6.0 * q2 * q - 6.0 * q2 + 1.0);
         let outer = 2.0 * self.k * a * a * a;
@@ -119,18 +200,39 @@ impl CubicSpline {
         }
     }
 
+    /// Wendland's [`Self::w_of_q`] without a branch around the arithmetic.
+    #[inline(always)]
+    fn wendland_w_selected(&self, q: f32) -> f32 {
+        let w = wendland_w(self.k, q);
+        if q < 1.0 {
+            w
+        } else {
+            0.0
+        }
+    }
+
     /// [`Self::w`] for the 16 distances `r`, into `w`: the same bits, vectorisable.
     #[inline(always)]
     pub(crate) fn w_lanes(&self, r: &[f32; 16], w: &mut [f32; 16]) {
-        for l in 0..16 {
-            w[l] = self.w_of_q_selected(r[l] * self.inv_h);
+        // The shape is chosen once per 16 lanes, so each loop vectorises on its own.
+        match self.shape {
+            KernelShape::CubicSpline => {
+                for l in 0..16 {
+                    w[l] = self.cubic_w_selected(r[l] * self.inv_h);
+                }
+            }
+            KernelShape::WendlandC2 => {
+                for l in 0..16 {
+                    w[l] = self.wendland_w_selected(r[l] * self.inv_h);
+                }
+            }
         }
     }
 
     /// [`Self::w_and_grad`] for the 16 offsets `(rx[l], ry[l])`: `W` into `w`, `∇W` into
-    /// `(gx, gy)`. No branches (each lane evaluates both pieces of the spline and keeps one),
-    /// so the compiler can vectorise it; the same operations in the same order as the scalar
-    /// form, so the same bits.
+    /// `(gx, gy)`. No branches inside a lane (each lane evaluates every piece of the kernel
+    /// and keeps one), so the compiler can vectorise it; the same operations in the same
+    /// order as the scalar form, so the same bits.
     #[inline(always)]
     pub(crate) fn w_and_grad_lanes(
         &self,
@@ -140,32 +242,66 @@ impl CubicSpline {
         gx: &mut [f32; 16],
         gy: &mut [f32; 16],
     ) {
-        for l in 0..16 {
-            let (x, y) = (rx[l], ry[l]);
-            // `Vec2::length`: √(x·x + y·y).
-            let rl = (x * x + y * y).sqrt();
-            let q = rl * self.inv_h;
-            w[l] = self.w_of_q_selected(q);
-            let a = 1.0 - q;
-            let dw = if q <= 0.5 {
-                self.l * q * (3.0 * q - 2.0)
-            } else {
-                -self.l * a * a
-            };
-            let scale = dw * self.inv_h / rl;
-            let outside = rl <= 1.0e-9 || q >= 1.0;
-            gx[l] = if outside { 0.0 } else { x * scale };
-            gy[l] = if outside { 0.0 } else { y * scale };
+        match self.shape {
+            KernelShape::CubicSpline => {
+                for l in 0..16 {
+                    let (x, y) = (rx[l], ry[l]);
+                    // `Vec2::length`: √(x·x + y·y).
+                    let rl = (x * x + y * y).sqrt();
+                    let q = rl * self.inv_h;
+                    w[l] = self.cubic_w_selected(q);
+                    let a = 1.0 - q;
+                    let dw = if q <= 0.5 {
+                        self.l * q * (3.0 * q - 2.0)
+                    } else {
+                        -self.l * a * a
+                    };
+                    let scale = dw * self.inv_h / rl;
+                    let outside = rl <= 1.0e-9 || q >= 1.0;
+                    gx[l] = if outside { 0.0 } else { x * scale };
+                    gy[l] = if outside { 0.0 } else { y * scale };
+                }
+            }
+            KernelShape::WendlandC2 => {
+                for l in 0..16 {
+                    let (x, y) = (rx[l], ry[l]);
+                    let rl = (x * x + y * y).sqrt();
+                    let q = rl * self.inv_h;
+                    w[l] = self.wendland_w_selected(q);
+                    let scale = wendland_dw(self.l, q) * self.inv_h / rl;
+                    let outside = rl <= 1.0e-9 || q >= 1.0;
+                    gx[l] = if outside { 0.0 } else { x * scale };
+                    gy[l] = if outside { 0.0 } else { y * scale };
+                }
+            }
         }
     }
+}
+
+/// Wendland C2's `W = k·(1 − q)⁴·(1 + 4q)` for `q < 1`, in the operation order the SIMD
+/// kernels repeat: `(k·(a²·a²))·(1 + 4q)`, `a = 1 − q`.
+#[inline(always)]
+fn wendland_w(k: f32, q: f32) -> f32 {
+    let a = 1.0 - q;
+    let a2 = a * a;
+    k * (a2 * a2) * (1.0 + 4.0 * q)
+}
+
+/// Wendland C2's `dW/dq = l·q·(1 − q)³` with `l = −20k`, as `(l·q)·(a²·a)`.
+#[inline(always)]
+fn wendland_dw(l: f32, q: f32) -> f32 {
+    let a = 1.0 - q;
+    l * q * (a * a * a)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    const SHAPES: [KernelShape; 2] = [KernelShape::CubicSpline, KernelShape::WendlandC2];
+
     /// ∫W over the plane by the midpoint rule on a fine grid, in f64 for the sum.
-    fn integral(kernel: &CubicSpline, cells: i32) -> f64 {
+    fn integral(kernel: &Kernel, cells: i32) -> f64 {
         let h = kernel.support() as f64;
         let dx = 2.0 * h / cells as f64;
         let mut sum = 0.0f64;
@@ -181,16 +317,23 @@ mod tests {
 
     #[test]
     fn integrates_to_one() {
-        for h in [0.01f32, 0.04, 1.0] {
-            let k = CubicSpline::new(h);
-            let s = integral(&k, 800);
-            assert!((s - 1.0).abs() < 1.0e-3, "∫W = {s} for h = {h}");
+        for shape in SHAPES {
+            for h in [0.01f32, 0.04, 1.0] {
+                let k = Kernel::new(shape, h);
+                let s = integral(&k, 800);
+                assert!((s - 1.0).abs() < 1.0e-3, "∫W = {s} for {shape:?}, h = {h}");
+            }
         }
     }
 
     #[test]
     fn vanishes_at_and_beyond_support() {
-        let k = CubicSpline::new(0.04);
+        for k in SHAPES.map(|s| Kernel::new(s, 0.04)) {
+            vanishes_at_and_beyond(k);
+        }
+    }
+
+    fn vanishes_at_and_beyond(k: Kernel) {
         assert_eq!(k.w(0.04), 0.0);
         assert_eq!(k.w(0.05), 0.0);
         assert_eq!(k.grad_w(Vec2::new(0.04, 0.0)), Vec2::ZERO);
@@ -200,8 +343,13 @@ mod tests {
 
     #[test]
     fn w_and_grad_agrees_with_w_and_grad_w_exactly() {
+        for k in SHAPES.map(|s| Kernel::new(s, 0.04)) {
+            fused_agrees(k);
+        }
+    }
+
+    fn fused_agrees(k: Kernel) {
         // The density pass uses the fused form; the solver's other passes use grad_w.
-        let k = CubicSpline::new(0.04);
         let mut points = vec![
             Vec2::ZERO,
             Vec2::new(1.0e-10, 0.0),
@@ -223,9 +371,14 @@ mod tests {
 
     #[test]
     fn the_lane_form_gives_the_scalar_bits() {
+        for k in SHAPES.map(|s| Kernel::new(s, 0.04)) {
+            lanes_give_scalar_bits(k);
+        }
+    }
+
+    fn lanes_give_scalar_bits(k: Kernel) {
         // Both pieces of the spline, their joins, the support's edge, beyond it, zero, and
         // a NaN offset.
-        let k = CubicSpline::new(0.04);
         let mut offsets = vec![
             Vec2::ZERO,
             Vec2::new(1.0e-10, 0.0),
@@ -259,7 +412,7 @@ mod tests {
 
     #[test]
     fn continuous_at_half_support() {
-        let k = CubicSpline::new(1.0);
+        let k = Kernel::cubic_spline(1.0);
         let below = k.w(0.5 - 1e-6);
         let above = k.w(0.5 + 1e-6);
         assert!((below - above).abs() < 1e-4);
@@ -267,7 +420,12 @@ mod tests {
 
     #[test]
     fn gradient_matches_finite_differences() {
-        let k = CubicSpline::new(0.04);
+        for k in SHAPES.map(|s| Kernel::new(s, 0.04)) {
+            gradient_matches_differences(k);
+        }
+    }
+
+    fn gradient_matches_differences(k: Kernel) {
         for &(x, y) in &[
             (0.003, 0.001),
             (0.012, -0.007),
@@ -295,8 +453,34 @@ mod tests {
     fn gradient_points_inward() {
         // W decreases with distance, so ∇_i W(x_i − x_j) points from i towards j's side:
         // along −r.
-        let k = CubicSpline::new(1.0);
-        let g = k.grad_w(Vec2::new(0.3, 0.0));
-        assert!(g.x < 0.0 && g.y == 0.0);
+        for k in SHAPES.map(|s| Kernel::new(s, 1.0)) {
+            let g = k.grad_w(Vec2::new(0.3, 0.0));
+            assert!(g.x < 0.0 && g.y == 0.0);
+        }
+    }
+
+    /// Wendland C2's value and slope at a few points, from its formula in f64:
+    /// `W = 7/(πh²)·(1 − q)⁴(1 + 4q)`, `dW/dr = −140/(πh³)·q(1 − q)³`.
+    #[test]
+    fn wendland_matches_its_formula() {
+        let h = 0.035f32;
+        let k = Kernel::new(KernelShape::WendlandC2, h);
+        assert_eq!(k.support(), h);
+        let pi = std::f64::consts::PI;
+        let h64 = h as f64;
+        for q in [0.0f64, 0.1, 0.33, 0.5, 0.77, 0.99] {
+            let w = 7.0 / (pi * h64 * h64) * (1.0 - q).powi(4) * (1.0 + 4.0 * q);
+            let got = k.w((q * h64) as f32) as f64;
+            assert!(
+                (got - w).abs() <= 1e-5 * w.max(1.0),
+                "W at q = {q}: {got} against {w}"
+            );
+            if q > 0.0 {
+                let slope = -140.0 / (pi * h64.powi(3)) * q * (1.0 - q).powi(3);
+                let g = k.grad_w(Vec2::new((q * h64) as f32, 0.0)).x as f64;
+                assert!((g - slope).abs() <= 1e-4 * slope.abs(), "dW/dr at q = {q}");
+            }
+        }
+        assert_eq!(k.w(h), 0.0);
     }
 }

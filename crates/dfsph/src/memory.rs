@@ -112,21 +112,24 @@ impl Scene {
             self.tank.max[0] - self.tank.min[0],
             self.tank.max[1] - self.tank.min[1],
         );
-        // Two layers of (w + h)·2/d each, plus the corners; the hexagonal lattice's rows
-        // are 7 % denser along x.
-        let tank = 4.4 * (w + h) / d + 64.0;
+        // `layers` layers (two for the cubic spline) of (w + h)·2/d each, plus the corners;
+        // the hexagonal lattice's rows are 7 % denser along x.
+        let layers = self.wall_layers();
+        let per_layer = 0.5 * layers;
+        let tank = per_layer * (4.4 * (w + h) / d + 64.0);
         let obstacles: f64 = self
             .obstacles
             .iter()
             .map(|o| match o {
                 Obstacle::Rect { min, max } => {
-                    4.0 * ((max[0] - min[0]) + (max[1] - min[1])) / d + 16.0
+                    per_layer * (4.0 * ((max[0] - min[0]) + (max[1] - min[1])) / d + 16.0)
                 }
                 Obstacle::Polyline { points } => {
-                    2.0 * points
-                        .windows(2)
-                        .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]) / d + 2.0)
-                        .sum::<f64>()
+                    layers
+                        * points
+                            .windows(2)
+                            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]) / d + 2.0)
+                            .sum::<f64>()
                 }
                 Obstacle::Particles { positions } => positions.len() as f64,
             })
@@ -138,10 +141,29 @@ impl Scene {
             .iter()
             .map(|b| {
                 let e = b.half_extent();
-                2.0 * std::f64::consts::TAU * e[0].hypot(e[1]) / d + 8.0
+                per_layer * (2.0 * std::f64::consts::TAU * e[0].hypot(e[1]) / d + 8.0)
             })
             .sum();
         (tank + obstacles + bodies).ceil().min(u64::MAX as f64) as u64
+    }
+
+    /// Layers of every wall ([`crate::boundary::wall_layers`]), as a float.
+    fn wall_layers(&self) -> f64 {
+        crate::boundary::wall_layers(&self.kernel(), self.spacing() as f32) as f64
+    }
+
+    /// [`PLANNED_NEIGHBOURS`] for this scene's kernel: the support disc's area grows with
+    /// the square of the support (2d for the cubic spline).
+    fn planned_neighbours(&self) -> u64 {
+        let ratio = self.solver.kernel.support_in_spacings() / 2.0;
+        (PLANNED_NEIGHBOURS as f64 * ratio * ratio).ceil() as u64
+    }
+
+    /// [`PLANNED_WALL_NEIGHBOURS`] for this scene's kernel, scaled as
+    /// [`Self::planned_neighbours`].
+    fn planned_wall_neighbours(&self) -> u64 {
+        let ratio = self.solver.kernel.support_in_spacings() / 2.0;
+        (PLANNED_WALL_NEIGHBOURS as f64 * ratio * ratio).ceil() as u64
     }
 
     /// The memory a simulation of this scene needs with its own fluid particles
@@ -168,10 +190,12 @@ impl Scene {
             .saturating_mul(per_fluid)
             .saturating_add(boundary.saturating_mul(BYTES_PER_BOUNDARY_PARTICLE));
         // Fluid–wall pairs: no more than the walls can have, nor than the fluid can.
-        let wall_pairs = PLANNED_WALL_NEIGHBOURS
+        let wall_pairs = self
+            .planned_wall_neighbours()
             .saturating_mul(boundary)
-            .min(PLANNED_NEIGHBOURS.saturating_mul(fluid));
-        let pairs = PLANNED_NEIGHBOURS
+            .min(self.planned_neighbours().saturating_mul(fluid));
+        let pairs = self
+            .planned_neighbours()
             .saturating_mul(fluid)
             .saturating_mul(BYTES_PER_FLUID_PAIR)
             .saturating_add(wall_pairs.saturating_mul(BYTES_PER_WALL_PAIR));

@@ -69,7 +69,7 @@ pub fn sites(anchor: [f64; 2], lo: [f64; 2], hi: [f64; 2], d: f64, tolerance: f6
 
 /// `Σ_j W(x_i − x_j)` over the infinite hexagonal lattice of [`rows`] (the particle itself
 /// included): the reciprocal of the volume that puts the lattice at rest density.
-pub fn kernel_sum(kernel: &crate::kernel::CubicSpline, d: f32) -> f32 {
+pub fn kernel_sum(kernel: &crate::kernel::Kernel, d: f32) -> f32 {
     let reach = (kernel.support() / (ROW_DISTANCE as f32 * d)).ceil() as i32 + 1;
     lattice_offsets(d, reach)
         .map(|x| kernel.w(x.length()) as f64)
@@ -92,7 +92,7 @@ fn lattice_offsets(d: f32, reach: i32) -> impl Iterator<Item = Vec2> {
 /// h = 2d, c = 0.981: a pressure field pushes 1.9 % less than its gradient says, so the
 /// solve's stiffness field at rest is 1/c times ρ0·g·(H − y) (docs/deep-columns.md).
 pub fn gradient_consistency(
-    kernel: &crate::kernel::CubicSpline,
+    kernel: &crate::kernel::Kernel,
     volume: f32,
     offsets: impl Iterator<Item = Vec2>,
 ) -> f32 {
@@ -103,21 +103,13 @@ pub fn gradient_consistency(
 }
 
 /// [`gradient_consistency`] of the hexagonal lattice of spacing `d`.
-pub fn hexagonal_gradient_consistency(
-    kernel: &crate::kernel::CubicSpline,
-    d: f32,
-    volume: f32,
-) -> f32 {
+pub fn hexagonal_gradient_consistency(kernel: &crate::kernel::Kernel, d: f32, volume: f32) -> f32 {
     let reach = (kernel.support() / (ROW_DISTANCE as f32 * d)).ceil() as i32 + 1;
     gradient_consistency(kernel, volume, lattice_offsets(d, reach))
 }
 
 /// [`gradient_consistency`] of the square lattice of spacing `d`.
-pub fn square_gradient_consistency(
-    kernel: &crate::kernel::CubicSpline,
-    d: f32,
-    volume: f32,
-) -> f32 {
+pub fn square_gradient_consistency(kernel: &crate::kernel::Kernel, d: f32, volume: f32) -> f32 {
     let reach = (kernel.support() / d).ceil() as i32 + 1;
     let offsets = (-reach..=reach)
         .flat_map(|j| (-reach..=reach).map(move |i| Vec2::new(i as f32 * d, j as f32 * d)));
@@ -131,7 +123,7 @@ mod tests {
     #[test]
     fn the_sph_gradient_recovers_98_percent_of_a_linear_field_on_the_lattice() {
         let d = 0.01;
-        let kernel = crate::kernel::CubicSpline::new(2.0 * d);
+        let kernel = crate::kernel::Kernel::cubic_spline(2.0 * d);
         let volume = 1.0 / kernel_sum(&kernel, d);
         let c = hexagonal_gradient_consistency(&kernel, d, volume);
         // Against a direct sum of the SPH gradient of p = x and p = y at a lattice site.

@@ -86,7 +86,7 @@ impl Simulation {
                             .collect(),
                     }
                 };
-                if sample_count(&whole, d) == left.len() {
+                if sample_count(&whole, d, &self.scene) == left.len() {
                     whole
                 } else {
                     Obstacle::Particles {
@@ -109,18 +109,14 @@ impl Simulation {
     }
 }
 
-/// How many boundary particles `Simulation::new` samples for an obstacle at spacing `d`.
-fn sample_count(obstacle: &Obstacle, d: f32) -> usize {
-    let v = |p: Point| Vec2::new(p[0] as f32, p[1] as f32);
-    let mut samples = BoundarySamples::default();
-    match obstacle {
-        Obstacle::Rect { min, max } => samples.add_rect(v(*min), v(*max), d, 0),
-        Obstacle::Polyline { points } => {
-            let pts: Vec<Vec2> = points.iter().map(|&p| v(p)).collect();
-            samples.add_polyline(&pts, d, 0);
-        }
-        Obstacle::Particles { positions } => return positions.len(),
+/// How many boundary particles `Simulation::new` samples for an obstacle of `scene` at
+/// spacing `d` (on the scene's lattice, as many layers thick as its kernel needs).
+fn sample_count(obstacle: &Obstacle, d: f32, scene: &Scene) -> usize {
+    if let Obstacle::Particles { positions } = obstacle {
+        return positions.len();
     }
+    let mut samples = BoundarySamples::new(crate::boundary::wall_layers(&scene.kernel(), d));
+    samples.add_obstacle(obstacle, d, scene.hexagonal_anchor(), 0);
     samples.positions.len()
 }
 
@@ -232,6 +228,29 @@ mod tests {
         assert_eq!(loaded.gravity(), Vec2::new(1.0, -5.0));
         assert_eq!(loaded.scene().viscosity.xsph, 0.2);
         assert_eq!(walls(&loaded), walls(&sim));
+    }
+
+    /// A box on the hexagonal packing, with walls as deep as either kernel needs, is saved as
+    /// the box it is (its samples are counted as `Simulation::new` makes them), not particle
+    /// by particle.
+    #[test]
+    fn a_box_on_the_hexagonal_packing_is_saved_as_a_box() {
+        for kernel in [
+            crate::kernel::KernelShape::CubicSpline,
+            crate::kernel::KernelShape::WendlandC2,
+        ] {
+            let mut scene = Scene::from_json(
+                r#"{"particle_radius": 0.02, "tank": {"min": [0, 0], "max": [2, 1.5]},
+                    "packing": "hexagonal", "fluid": [{"min": [0, 0], "max": [2, 1]}],
+                    "obstacles": [{"type": "rect", "min": [0.8, 0], "max": [1.2, 0.6]}]}"#,
+            )
+            .unwrap();
+            scene.solver.kernel = kernel;
+            let mut sim = Simulation::new(&scene).unwrap();
+            sim.step();
+            let saved = sim.to_scene();
+            assert_eq!(saved.obstacles, scene.obstacles, "{kernel:?}");
+        }
     }
 
     #[test]

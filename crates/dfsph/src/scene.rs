@@ -174,6 +174,9 @@ pub struct SolverParams {
     pub method: Method,
     /// DFSPH density solve: `jacobi` or `conjugate_gradient`.
     pub pressure_solve: PressureSolve,
+    /// The smoothing kernel, and with it the support: `cubic_spline` (2d) or `wendland_c2`
+    /// (3.5d). See [`crate::kernel::KernelShape`].
+    pub kernel: crate::kernel::KernelShape,
     /// DFSPH density solve: stop when the *average* relative density error is at most this,
     /// in percent.
     pub density_tolerance_pct: f64,
@@ -255,6 +258,7 @@ impl Default for SolverParams {
         Self {
             method: Method::Dfsph,
             pressure_solve: PressureSolve::Jacobi,
+            kernel: crate::kernel::KernelShape::CubicSpline,
             density_tolerance_pct: 0.05,
             divergence_tolerance_pct: 0.1,
             min_iterations: 2,
@@ -490,9 +494,15 @@ impl Scene {
         2.0 * self.particle_radius
     }
 
-    /// Kernel support h = 4r, metres.
+    /// Kernel support h, metres: the kernel's support in spacings times d (4r for the cubic
+    /// spline, 7r for Wendland C2).
     pub fn support(&self) -> f64 {
-        4.0 * self.particle_radius
+        self.solver.kernel.support_in_spacings() * self.spacing()
+    }
+
+    /// The scene's smoothing kernel.
+    pub fn kernel(&self) -> crate::kernel::Kernel {
+        crate::kernel::Kernel::new(self.solver.kernel, self.support() as f32)
     }
 
     /// Number of lattice sites along one side of a fluid block of this length.
@@ -573,7 +583,10 @@ impl Scene {
             Packing::Square => 0.0,
         };
         for (k, obstacle) in self.obstacles.iter().enumerate() {
-            let mut walls = crate::boundary::BoundarySamples::default();
+            let mut walls = crate::boundary::BoundarySamples::new(crate::boundary::wall_layers(
+                &self.kernel(),
+                d,
+            ));
             walls.add_obstacle(obstacle, d, self.hexagonal_anchor(), 1);
             for (i, distance) in distances.iter().enumerate() {
                 let in_box = match obstacle {
@@ -1394,6 +1407,27 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("`fluid[1]`") && e.contains("fluid[0]"), "{e}");
+    }
+
+    #[test]
+    fn the_kernel_is_read_sets_the_support_and_a_bad_value_is_named() {
+        use crate::kernel::KernelShape;
+        let s =
+            Scene::from_json(r#"{"particle_radius": 0.01, "solver": {"kernel": "wendland_c2"}}"#)
+                .unwrap();
+        assert_eq!(s.solver.kernel, KernelShape::WendlandC2);
+        assert!((s.support() - 0.07).abs() < 1e-12, "{}", s.support());
+        assert_eq!(s.kernel().shape(), KernelShape::WendlandC2);
+        let d = Scene::default();
+        assert_eq!(d.solver.kernel, KernelShape::CubicSpline);
+        assert!((d.support() - 4.0 * d.particle_radius).abs() < 1e-12);
+        let e = Scene::from_json(r#"{"solver": {"kernel": "gaussian"}}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`solver.kernel`") && e.contains("wendland_c2"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -9,7 +9,7 @@ use web_time::Instant;
 
 use crate::boundary::{self, Body, BodyId, BoundaryModel, BoundarySamples};
 use crate::forces::{self, PointerForce};
-use crate::kernel::CubicSpline;
+use crate::kernel::Kernel;
 use crate::neighbors::{Grid, NeighborLists};
 use crate::packing;
 use crate::particles::{BoundaryParticles, FluidParticles, Scratch};
@@ -80,7 +80,7 @@ enum Terms {
 /// The state of one running scene.
 pub struct Simulation {
     pub(crate) scene: Scene,
-    pub(crate) kernel: CubicSpline,
+    pub(crate) kernel: Kernel,
     /// Lattice spacing d, m.
     pub(crate) spacing: f32,
     /// Volume of one fluid particle V = m/ρ0, m² (chosen so the initial lattice is at ρ0).
@@ -178,7 +178,7 @@ impl Simulation {
     pub fn new(scene: &Scene) -> Result<Self, SceneError> {
         scene.validate()?;
         let d = scene.spacing() as f32;
-        let kernel = CubicSpline::new(scene.support() as f32);
+        let kernel = scene.kernel();
         let hexagonal = scene.packing == Packing::Hexagonal;
         let volume = 1.0
             / if hexagonal {
@@ -237,7 +237,7 @@ impl Simulation {
             wall_flux_at_start: Vec::new(),
             rigid_predicted: Vec::new(),
         };
-        let mut samples = BoundarySamples::default();
+        let mut samples = BoundarySamples::new(boundary::wall_layers(&kernel, d));
         if hexagonal {
             samples.add_hexagonal_tank(scene.tank.min, scene.tank.max, scene.spacing(), 0);
         } else {
@@ -1347,7 +1347,7 @@ impl Simulation {
     }
 
     /// The kernel in use.
-    pub fn kernel(&self) -> &CubicSpline {
+    pub fn kernel(&self) -> &Kernel {
         &self.kernel
     }
 
@@ -1421,7 +1421,7 @@ pub const MAX_SHAKE_SPEED: f32 = 2.0;
 
 /// `Σ_j W(x_i − x_j)` over an infinite square lattice of spacing `d` (the particle itself
 /// included): the reciprocal of the volume that puts the lattice at rest density.
-pub fn lattice_kernel_sum(kernel: &CubicSpline, d: f32) -> f32 {
+pub fn lattice_kernel_sum(kernel: &Kernel, d: f32) -> f32 {
     let reach = (kernel.support() / d).ceil() as i32 + 1;
     let mut sum = 0.0f64;
     for j in -reach..=reach {

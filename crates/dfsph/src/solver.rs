@@ -21,7 +21,7 @@ use crate::par::prelude::*;
 use glam::Vec2;
 
 use crate::blocked::{BlockedPairs, ResidualTerms, LANES};
-use crate::kernel::CubicSpline;
+use crate::kernel::Kernel;
 use crate::neighbors::NeighborLists;
 use crate::particles::{BoundaryParticles, FluidParticles};
 use crate::step::StepContext;
@@ -84,7 +84,7 @@ impl<'a> Neighborhood<'a> {
 /// particle's factor is at most `max_factor` (m², see
 /// [`SolverSettings::max_factor_ratio`](crate::settings::SolverSettings::max_factor_ratio)).
 pub fn density_and_factor(
-    kernel: &CubicSpline,
+    kernel: &Kernel,
     volume: f32,
     fluid: &mut FluidParticles,
     fluid_lists: &NeighborLists,
@@ -178,7 +178,7 @@ pub struct Walls<'a> {
 
 /// The DFSPH factor of a particle inside an ideal square lattice of spacing `d` (its gradient
 /// sum vanishes by symmetry): `1 / Σ_k |V ∇W(x_k)|²`.
-pub fn lattice_factor(kernel: &CubicSpline, d: f32, volume: f32) -> f32 {
+pub fn lattice_factor(kernel: &Kernel, d: f32, volume: f32) -> f32 {
     let reach = (kernel.support() / d).ceil() as i32 + 1;
     let mut sum = 0.0f64;
     for j in -reach..=reach {
@@ -350,7 +350,7 @@ mod tests {
     /// A disordered patch of fluid on a floor of wall particles that move, with neighbour
     /// lists and the step's cache, built as the simulation builds them.
     struct Patch {
-        kernel: CubicSpline,
+        kernel: Kernel,
         volume: f32,
         fluid: FluidParticles,
         boundary: BoundaryParticles,
@@ -385,7 +385,7 @@ mod tests {
 
     fn patch() -> Patch {
         let d = 0.02f32;
-        let kernel = CubicSpline::new(2.0 * d);
+        let kernel = Kernel::cubic_spline(2.0 * d);
         let volume = d * d;
         let mut points = Vec::new();
         for j in 0..12 {

@@ -3,7 +3,7 @@
 
 use glam::Vec2;
 
-use crate::kernel::CubicSpline;
+use crate::kernel::Kernel;
 use crate::particles::BoundaryParticles;
 use crate::rigid::CoupledBodies;
 use crate::settings::SolverSettings;
@@ -15,7 +15,7 @@ use crate::solver::Neighborhood;
 #[derive(Clone, Copy)]
 pub struct StepContext<'a> {
     /// The smoothing kernel W.
-    pub kernel: &'a CubicSpline,
+    pub kernel: &'a Kernel,
     /// Volume of one fluid particle V = m/ρ0, m².
     pub volume: f32,
     /// Lattice spacing d, m.

@@ -3,7 +3,7 @@
 //! instructions, plain loads or windows ([`super::Gather`]).
 
 use super::{FluidSums, Gather, SlotIndex, Windows, LANES, WINDOW};
-use crate::kernel::CubicSpline;
+use crate::kernel::{Kernel, KernelShape};
 use glam::Vec2;
 use std::arch::x86_64::*;
 
@@ -54,7 +54,7 @@ impl<'a> LaneLists<'a> {
 /// against the particle count, stored in `idx` and used to read the neighbours'
 /// positions; then `∇W` and the density sums. Multiplies and adds are separate (no
 /// fused multiply-add) and in the scalar code's order, so every result rounds exactly
-/// as [`CubicSpline::w_and_grad`] and the scalar sums do.
+/// as [`Kernel::w_and_grad`] and the scalar sums do.
 ///
 /// # Safety
 /// The CPU must have AVX-512F, and the three slices the same length (a multiple of 16,
@@ -69,14 +69,15 @@ pub unsafe fn fill_fluid_block<I: SlotIndex>(
     xi: &[f32; LANES],
     yi: &[f32; LANES],
     pos: &[Vec2],
-    kernel: &CubicSpline,
+    kernel: &Kernel,
     volume: f32,
     start: f32,
     gather: Gather,
 ) -> FluidSums {
     assert!(pos.len() >= lists.n);
     let (count, first) = (_mm512_set1_epi32(lists.n as i32), lists.first as i32);
-    let (k, l, inv_h) = kernel.constants();
+    let shape = Shape::of(kernel);
+    let inv_h = shape.inv_h;
     let base = pos.as_ptr() as *const f32;
     let (xi, yi) = (_mm512_loadu_ps(xi.as_ptr()), _mm512_loadu_ps(yi.as_ptr()));
     let lens = _mm512_loadu_si512(lists.lens.as_ptr() as *const _);
@@ -117,22 +118,12 @@ pub unsafe fn fill_fluid_block<I: SlotIndex>(
         let (rx, ry) = (_mm512_sub_ps(xi, xj), _mm512_sub_ps(yi, yj));
         let rl = _mm512_sqrt_ps(_mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry)));
         let q = _mm512_mul_ps(rl, c(inv_h));
-        let inner = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(q, c(0.5));
         let inside = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, c(1.0));
-        // W: k·(6q³ − 6q² + 1) inside q ≤ ½, 2k·(1 − q)³ up to 1, 0 beyond.
-        let w = cubic_w(q, inner, inside, k);
-        let a = _mm512_sub_ps(c(1.0), q);
-        // dW/dq: l·q·(3q − 2) inside q ≤ ½, −l·(1 − q)² beyond.
-        let d_in = _mm512_mul_ps(
-            _mm512_mul_ps(c(l), q),
-            _mm512_sub_ps(_mm512_mul_ps(c(3.0), q), c(2.0)),
-        );
-        let d_out = _mm512_mul_ps(_mm512_mul_ps(c(-l), a), a);
-        let d = _mm512_mask_blend_ps(inner, d_out, d_in);
+        let (w, d) = shape.w_and_dw(q, inside);
         // ∇W = r·(dW/dq·(1/h)/|r|) where 1e-9 < |r| and q < 1, else 0.
         let has_grad = inside & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(rl, c(1.0e-9)) & pair;
         let scale = _mm512_maskz_div_ps(has_grad, _mm512_mul_ps(d, c(inv_h)), rl);
-        // Every lane without a gradient stores +0, as `CubicSpline::w_and_grad`'s
+        // Every lane without a gradient stores +0, as `Kernel::w_and_grad`'s
         // `Vec2::ZERO` and the lane kernels do: padding (its r, taken from another
         // particle, could carry a sign) and real pairs at q ≥ 1 or |r| ≤ 1e-9, where
         // r·0 would be −0 for a negative component.
@@ -158,32 +149,83 @@ pub unsafe fn fill_fluid_block<I: SlotIndex>(
     out
 }
 
-/// The cubic spline's `W` at `q` for 16 lanes, as [`CubicSpline::w`] computes it
-/// (separate multiplies and adds in its order): `k·(6q³ − 6q² + 1)` where `inner`
-/// (q ≤ ½), `2k·(1 − q)³` elsewhere in `inside` (q < 1), 0 beyond.
-#[inline]
-#[target_feature(enable = "avx512f")]
-fn cubic_w(q: __m512, inner: __mmask16, inside: __mmask16, k: f32) -> __m512 {
-    let c = |v: f32| _mm512_set1_ps(v);
-    let q2 = _mm512_mul_ps(q, q);
-    let six_q2 = _mm512_mul_ps(c(6.0), q2);
-    let w_in = _mm512_mul_ps(
-        c(k),
-        _mm512_add_ps(_mm512_sub_ps(_mm512_mul_ps(six_q2, q), six_q2), c(1.0)),
-    );
-    let a = _mm512_sub_ps(c(1.0), q);
-    let w_out = _mm512_mul_ps(_mm512_mul_ps(_mm512_mul_ps(c(2.0 * k), a), a), a);
-    _mm512_maskz_mov_ps(inside, _mm512_mask_blend_ps(inner, w_out, w_in))
+/// The kernel's shape and constants, for the 16-lane forms of [`Kernel::w`] and its
+/// gradient. Each evaluates every piece and keeps one per lane, with separate multiplies and
+/// adds in the scalar code's order, so each lane rounds exactly as the scalar kernel does.
+#[derive(Clone, Copy)]
+struct Shape {
+    wendland: bool,
+    k: f32,
+    l: f32,
+    inv_h: f32,
 }
 
-/// [`cubic_w`] at the squared distances `r2`, as [`CubicSpline::w`] of `√r2`.
-#[inline]
-#[target_feature(enable = "avx512f")]
-fn cubic_w_at(r2: __m512, inv_h: f32, k: f32) -> __m512 {
-    let q = _mm512_mul_ps(_mm512_sqrt_ps(r2), _mm512_set1_ps(inv_h));
-    let inner = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(q, _mm512_set1_ps(0.5));
-    let inside = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, _mm512_set1_ps(1.0));
-    cubic_w(q, inner, inside, k)
+impl Shape {
+    fn of(kernel: &Kernel) -> Self {
+        let (k, l, inv_h) = kernel.constants();
+        Shape {
+            wendland: kernel.shape() == KernelShape::WendlandC2,
+            k,
+            l,
+            inv_h,
+        }
+    }
+
+    /// `W` at `q` where `inside` (q < 1), 0 elsewhere: the cubic spline's `k·(6q³ − 6q² + 1)`
+    /// for q ≤ ½ and `2k·(1 − q)³` beyond, or Wendland C2's `(k·(a²·a²))·(1 + 4q)`, a = 1 − q.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn w(&self, q: __m512, inside: __mmask16) -> __m512 {
+        let c = |v: f32| _mm512_set1_ps(v);
+        let a = _mm512_sub_ps(c(1.0), q);
+        if self.wendland {
+            let a2 = _mm512_mul_ps(a, a);
+            let w = _mm512_mul_ps(
+                _mm512_mul_ps(c(self.k), _mm512_mul_ps(a2, a2)),
+                _mm512_add_ps(c(1.0), _mm512_mul_ps(c(4.0), q)),
+            );
+            return _mm512_maskz_mov_ps(inside, w);
+        }
+        let inner = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(q, c(0.5));
+        let q2 = _mm512_mul_ps(q, q);
+        let six_q2 = _mm512_mul_ps(c(6.0), q2);
+        let w_in = _mm512_mul_ps(
+            c(self.k),
+            _mm512_add_ps(_mm512_sub_ps(_mm512_mul_ps(six_q2, q), six_q2), c(1.0)),
+        );
+        let w_out = _mm512_mul_ps(_mm512_mul_ps(_mm512_mul_ps(c(2.0 * self.k), a), a), a);
+        _mm512_maskz_mov_ps(inside, _mm512_mask_blend_ps(inner, w_out, w_in))
+    }
+
+    /// [`Self::w`] and `dW/dq`: the cubic spline's `l·q·(3q − 2)` for q ≤ ½ and
+    /// `−l·(1 − q)²` beyond, or Wendland C2's `(l·q)·(a·a·a)`.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn w_and_dw(&self, q: __m512, inside: __mmask16) -> (__m512, __m512) {
+        let c = |v: f32| _mm512_set1_ps(v);
+        let w = self.w(q, inside);
+        let a = _mm512_sub_ps(c(1.0), q);
+        if self.wendland {
+            let a3 = _mm512_mul_ps(_mm512_mul_ps(a, a), a);
+            return (w, _mm512_mul_ps(_mm512_mul_ps(c(self.l), q), a3));
+        }
+        let inner = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(q, c(0.5));
+        let d_in = _mm512_mul_ps(
+            _mm512_mul_ps(c(self.l), q),
+            _mm512_sub_ps(_mm512_mul_ps(c(3.0), q), c(2.0)),
+        );
+        let d_out = _mm512_mul_ps(_mm512_mul_ps(c(-self.l), a), a);
+        (w, _mm512_mask_blend_ps(inner, d_out, d_in))
+    }
+
+    /// [`Self::w`] at the squared distances `r2`, as [`Kernel::w`] of `√r2`.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn w_at(&self, r2: __m512) -> __m512 {
+        let q = _mm512_mul_ps(_mm512_sqrt_ps(r2), _mm512_set1_ps(self.inv_h));
+        let inside = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, _mm512_set1_ps(1.0));
+        self.w(q, inside)
+    }
 }
 
 /// [`super::BlockedPairs::advected_kernel_sums`], 16 pairs at a time.
@@ -201,13 +243,13 @@ pub unsafe fn advected_kernel_sums<I: SlotIndex>(
     pos: &[Vec2],
     vel: &[Vec2],
     dt: f32,
-    kernel: &CubicSpline,
+    kernel: &Kernel,
     volume: f32,
     start: f32,
     gather: Gather,
     windows: Option<Windows>,
 ) -> [f32; LANES] {
-    let (k, _, inv_h) = kernel.constants();
+    let shape = Shape::of(kernel);
     let c = |v: f32| _mm512_set1_ps(v);
     let support2 = c(kernel.support() * kernel.support());
     let neighbours = NeighbourStates::new::<I>(first, pos, vel, gather, windows);
@@ -227,7 +269,7 @@ pub unsafe fn advected_kernel_sums<I: SlotIndex>(
         // Padding repeats the particle itself, which is never its own neighbour.
         let pair =
             _mm512_cmpneq_epi32_mask(j, own) & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(r2, support2);
-        let w = cubic_w_at(r2, inv_h, k);
+        let w = shape.w_at(r2);
         sum = _mm512_mask_add_ps(sum, pair, sum, _mm512_mul_ps(c(volume), w));
     }
     let mut out = [0.0f32; LANES];
@@ -414,13 +456,13 @@ pub unsafe fn viscosity_sums<I: SlotIndex>(
     vi: &[Vec2; LANES],
     pos: &[Vec2],
     vel: &[Vec2],
-    kernel: &CubicSpline,
+    kernel: &Kernel,
     eps2: f32,
     laplacian: bool,
     gather: Gather,
     windows: Option<Windows>,
 ) -> ([Vec2; LANES], [Vec2; LANES]) {
-    let (k, _, inv_h) = kernel.constants();
+    let shape = Shape::of(kernel);
     let c = |v: f32| _mm512_set1_ps(v);
     let neighbours = NeighbourStates::new::<I>(first, pos, vel, gather, windows);
     let own = indices_from((first - I::origin(first)) as u32);
@@ -436,7 +478,7 @@ pub unsafe fn viscosity_sums<I: SlotIndex>(
         let (rx, ry) = (_mm512_sub_ps(xi_x, xj), _mm512_sub_ps(xi_y, yj));
         let (ux, uy) = (_mm512_sub_ps(vi_x, vxj), _mm512_sub_ps(vi_y, vyj));
         let r2 = _mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry));
-        let w = cubic_w_at(r2, inv_h, k);
+        let w = shape.w_at(r2);
         sx = _mm512_mask_sub_ps(sx, pair, sx, _mm512_mul_ps(ux, w));
         sy = _mm512_mask_sub_ps(sy, pair, sy, _mm512_mul_ps(uy, w));
         if laplacian {

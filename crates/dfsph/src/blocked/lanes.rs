@@ -10,12 +10,12 @@ use std::ops::Range;
 use glam::Vec2;
 
 use super::{BlockedPairs, FluidSums, ResidualTerms, SlotIndex, LANES};
-use crate::kernel::CubicSpline;
+use crate::kernel::Kernel;
 use crate::simd::mul_add;
 
 /// [`super::BlockWriter::fill_block`]'s pair loop on the lane path, slot by slot: each lane's
 /// neighbour position, `∇W` (written to `gx`, `gy`; zero past the lane's list) and the
-/// density sums, in list order with [`CubicSpline::w_and_grad`]'s operations, so every path
+/// density sums, in list order with [`Kernel::w_and_grad`]'s operations, so every path
 /// gives the same bits. `FUSED` only selects how the code is compiled ([`crate::simd::lane_kernel`]).
 ///
 /// # Safety
@@ -32,7 +32,7 @@ pub(super) unsafe fn lane_fluid_sums<I: SlotIndex, const FUSED: bool>(
     xi: &[f32; LANES],
     yi: &[f32; LANES],
     pos: &[Vec2],
-    kernel: &CubicSpline,
+    kernel: &Kernel,
     volume: f32,
     start: f32,
 ) -> FluidSums {
@@ -83,7 +83,7 @@ pub(super) unsafe fn lane_advected_kernel_sums<I: SlotIndex, const FUSED: bool>(
     pos: &[Vec2],
     vel: &[Vec2],
     dt: f32,
-    kernel: &CubicSpline,
+    kernel: &Kernel,
     volume: f32,
     start: f32,
 ) -> [f32; LANES] {
@@ -131,7 +131,7 @@ pub(super) unsafe fn lane_viscosity_sums<I: SlotIndex, const FUSED: bool>(
     vi: &[Vec2; LANES],
     pos: &[Vec2],
     vel: &[Vec2],
-    kernel: &CubicSpline,
+    kernel: &Kernel,
     eps2: f32,
     laplacian: bool,
 ) -> ([Vec2; LANES], [Vec2; LANES]) {

@@ -1,4 +1,5 @@
 use super::*;
+use crate::kernel::KernelShape;
 
 /// Deterministic pseudo-random numbers in [0, 1).
 fn unit(k: u64) -> f32 {
@@ -221,50 +222,53 @@ fn all_kernel_bits(
         .map(|k| Vec2::new(val(k, 2), val(k, 3)) * 0.05)
         .collect();
     let vel: Vec<Vec2> = (0..n).map(|k| Vec2::new(val(k, 4), val(k, 5))).collect();
-    let kernel = CubicSpline::new(0.04);
-    let mut blocks = BlockedPairs::default();
-    setup(&mut blocks);
-    blocks.build(lists, grads);
     let mut bits = Vec::new();
-    let mut push = |v: &[f32]| bits.extend(v.iter().map(|x| x.to_bits()));
-    for b in 0..blocks.blocks() {
-        let (sx, sy) = blocks.weighted_gradient_sums(b, &s);
-        push(&sx);
-        push(&sy);
-        push(&blocks.velocity_gradient_dots(b, &vel));
-        push(&blocks.advected_kernel_sums(b, &pos, &vel, 1e-3, &kernel, 0.5, 0.1));
-        let (smooth, laplace) = blocks.viscosity_sums(b, &pos, &vel, &kernel, 1e-6, true);
-        for v in smooth.iter().chain(&laplace) {
-            push(&[v.x, v.y]);
+    // Every kernel shape, at a support that reaches the lists' neighbours.
+    for shape in [KernelShape::CubicSpline, KernelShape::WendlandC2] {
+        let kernel = Kernel::new(shape, 0.04);
+        let mut blocks = BlockedPairs::default();
+        setup(&mut blocks);
+        blocks.build(lists, grads);
+        let mut push = |v: &[f32]| bits.extend(v.iter().map(|x| x.to_bits()));
+        for b in 0..blocks.blocks() {
+            let (sx, sy) = blocks.weighted_gradient_sums(b, &s);
+            push(&sx);
+            push(&sy);
+            push(&blocks.velocity_gradient_dots(b, &vel));
+            push(&blocks.advected_kernel_sums(b, &pos, &vel, 1e-3, &kernel, 0.5, 0.1));
+            let (smooth, laplace) = blocks.viscosity_sums(b, &pos, &vel, &kernel, 1e-6, true);
+            for v in smooth.iter().chain(&laplace) {
+                push(&[v.x, v.y]);
+            }
         }
-    }
-    let mut writer_sums = Vec::new();
-    let mut filled = BlockedPairs::default();
-    setup(&mut filled);
-    filled.prepare(lists);
-    for (b, mut w) in filled.writers(1).into_iter().enumerate() {
-        let sums = w.fill_block(b, lists, &pos, &kernel, 0.5, 0.1);
-        writer_sums.extend(
-            sums.density
+        let mut writer_sums = Vec::new();
+        let mut filled = BlockedPairs::default();
+        setup(&mut filled);
+        filled.prepare(lists);
+        for (b, mut w) in filled.writers(1).into_iter().enumerate() {
+            let sums = w.fill_block(b, lists, &pos, &kernel, 0.5, 0.1);
+            writer_sums.extend(
+                sums.density
+                    .iter()
+                    .chain(&sums.grad_sq)
+                    .map(|x| x.to_bits()),
+            );
+        }
+        // The density pass writes the same indices as `build` (the SIMD path reads them from
+        // the lists itself).
+        assert_eq!(filled.absolute_indices(), blocks.absolute_indices());
+        assert_eq!(filled.relative_indices(), blocks.relative_indices());
+        assert_eq!(filled.window_start, blocks.window_start);
+        assert_eq!(filled.window_code, blocks.window_code);
+        bits.extend(writer_sums);
+        bits.extend(
+            filled
+                .grad_x
                 .iter()
-                .chain(&sums.grad_sq)
+                .chain(&filled.grad_y)
                 .map(|x| x.to_bits()),
         );
     }
-    // The density pass writes the same indices as `build` (the SIMD path reads them from
-    // the lists itself).
-    assert_eq!(filled.absolute_indices(), blocks.absolute_indices());
-    assert_eq!(filled.relative_indices(), blocks.relative_indices());
-    assert_eq!(filled.window_start, blocks.window_start);
-    assert_eq!(filled.window_code, blocks.window_code);
-    bits.extend(writer_sums);
-    bits.extend(
-        filled
-            .grad_x
-            .iter()
-            .chain(&filled.grad_y)
-            .map(|x| x.to_bits()),
-    );
     bits
 }
 
@@ -601,7 +605,7 @@ fn the_density_pass_refuses_a_neighbour_index_past_the_particles() {
     // The SIMD path reads the lists itself; it checks before it reads positions.
     let (lists, _) = random_lists_ending_with(40, Some(40));
     let pos = vec![Vec2::ZERO; 40];
-    let kernel = CubicSpline::new(0.04);
+    let kernel = Kernel::cubic_spline(0.04);
     let mut blocks = BlockedPairs::default();
     blocks.prepare(&lists);
     for (b, mut w) in blocks.writers(1).into_iter().enumerate() {
@@ -666,7 +670,7 @@ fn the_fma_path_fuses_the_pressure_sums() {
 }
 
 /// The density pass stores, for every pair on every path, the bits of
-/// [`CubicSpline::w_and_grad`]'s `∇W`: `+0` (its `Vec2::ZERO`) beyond the support, where
+/// [`Kernel::w_and_grad`]'s `∇W`: `+0` (its `Vec2::ZERO`) beyond the support, where
 /// `r·0` would carry `r`'s sign, and `+0` in the padding. (The AVX-512 kernel once wrote
 /// `−0` there, which no sum shows; the gradients are read again by every later pass.)
 #[test]
@@ -677,8 +681,10 @@ fn the_density_pass_stores_the_scalar_gradients() {
             .map(|k| Vec2::new(unit(k as u64 * 5 + 2), unit(k as u64 * 5 + 3)) - 0.4)
             .map(|p| p * 0.05)
             .collect();
-        let kernel = CubicSpline::new(0.04);
-        for path in SimdPath::available_paths() {
+        for (path, shape) in SimdPath::available_paths()
+            .flat_map(|p| [(p, KernelShape::CubicSpline), (p, KernelShape::WendlandC2)])
+        {
+            let kernel = Kernel::new(shape, 0.04);
             let mut blocks = BlockedPairs::default();
             blocks.set_simd_path(path);
             blocks.prepare(&lists);
@@ -703,7 +709,7 @@ fn the_density_pass_stores_the_scalar_gradients() {
                         assert_eq!(
                             (got.0.to_bits(), got.1.to_bits()),
                             (want.x.to_bits(), want.y.to_bits()),
-                            "path {path}, particle {i}, slot {s}"
+                            "path {path}, {shape:?}, particle {i}, slot {s}"
                         );
                     }
                 }

@@ -2,19 +2,20 @@
 //! SPH", eq. 4–5): walls are sampled with particles that add `ρ0·Ψ_b·W` to the density of
 //! nearby fluid and receive the mirrored pressure force.
 //!
-//! Sampling. Every wall is two layers thick with spacing d, placed so that it continues the
-//! fluid lattice (the tank's layers sit at d/2 and 3d/2 outside its interior, exactly where the
-//! next fluid rows would be). Two layers cover the kernel support h = 2d of any fluid particle
-//! that has not already crossed into the wall.
+//! Sampling. Every wall is [`wall_layers`] layers thick with spacing d (⌈h/d⌉: two for the
+//! cubic spline at h = 2d, four for Wendland C2 at 3.5d), placed so that it continues the
+//! fluid lattice (the tank's layers sit at d/2, 3d/2, … outside its interior, exactly where the
+//! next fluid rows would be). They cover the kernel support h of any fluid particle that has
+//! not already crossed into the wall.
 //!
 //! Volume. Tank walls continue the fluid lattice exactly, so their particles simply take the
 //! fluid particles' volume (scaled by their area when the tank is not a whole number of
 //! spacings): fluid at rest then reads ρ0 everywhere, corners included. Obstacles and drawn
 //! walls do not line up with the fluid, and use Akinci's estimate:  `Ψ_b = 1 / Σ_k W_bk` over boundary neighbours measures how densely the
-//! wall is sampled, but a wall two layers thick lacks the third (fluid-side) row of a full
-//! neighbourhood, so the plain formula overestimates the volume of a lattice wall by the ratio
-//! of a full lattice sum to a two-row sum (≈ 1.19 for the cubic spline at h = 2d), and fluid
-//! beside a wall would start 3 % too dense. We multiply by γ = (two-row sum)/(full sum), computed
+//! wall is sampled, but a wall lacks the fluid-side rows of a full neighbourhood, so the plain
+//! formula overestimates the volume of a lattice wall by the ratio of a full lattice sum to the
+//! wall rows' sum (≈ 1.19 for the cubic spline at h = 2d and two rows), and fluid beside a wall
+//! would start 3 % too dense. We multiply by γ = (wall rows' sum)/(full sum), computed
 //! from the kernel, so that a straight wall reads like the fluid it continues; irregular
 //! samplings keep Akinci's adaptivity.
 //!
@@ -25,7 +26,7 @@
 
 use glam::Vec2;
 
-use crate::kernel::CubicSpline;
+use crate::kernel::Kernel;
 use crate::neighbors::Grid;
 
 mod akinci;
@@ -67,9 +68,18 @@ pub struct Body {
     pub rigid: Option<u16>,
 }
 
+/// How many layers thick a wall must be for fluid beside it to see a full neighbourhood:
+/// ⌈h/d⌉ (2 for the cubic spline at h = 2d, 4 for Wendland C2 at 3.5d).
+pub fn wall_layers(kernel: &Kernel, d: f32) -> usize {
+    // The small allowance keeps 2d/d = 2.0000002 from becoming 3 layers.
+    ((kernel.support() / d) * (1.0 - 1.0e-5)).ceil().max(1.0) as usize
+}
+
 /// Sampled boundary particles before volumes are known.
-#[derive(Default, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct BoundarySamples {
+    /// Layers of every wall sampled here ([`wall_layers`]).
+    pub layers: usize,
     pub positions: Vec<Vec2>,
     pub bodies: Vec<BodyId>,
     /// The particle's area when it is part of a lattice that continues the fluid's (the tank
@@ -79,6 +89,16 @@ pub struct BoundarySamples {
 }
 
 impl BoundarySamples {
+    /// No samples yet; walls will be `layers` layers thick ([`wall_layers`]).
+    pub fn new(layers: usize) -> Self {
+        Self {
+            layers: layers.max(1),
+            positions: Vec::new(),
+            bodies: Vec::new(),
+            lattice_area: Vec::new(),
+        }
+    }
+
     /// Keep only the samples whose position passes `keep`.
     pub fn retain(&mut self, keep: impl Fn(Vec2) -> bool) {
         let mut k = 0;
@@ -95,15 +115,17 @@ impl BoundarySamples {
         self.lattice_area.truncate(k);
     }
 
-    /// Two layers outside the interior `[lo, hi]` of a box, corners filled: the tank walls.
+    /// [`Self::layers`] layers outside the interior `[lo, hi]` of a box, corners filled: the
+    /// tank walls.
     pub fn add_tank(&mut self, lo: Vec2, hi: Vec2, d: f32, body: BodyId) {
         let nx = ((hi.x - lo.x) / d).round().max(1.0) as i32;
         let ny = ((hi.y - lo.y) / d).round().max(1.0) as i32;
         // Spacing stretched to fit the interior exactly.
         let dx = (hi.x - lo.x) / nx as f32;
         let dy = (hi.y - lo.y) / ny as f32;
-        for j in -2..ny + 2 {
-            for i in -2..nx + 2 {
+        let n = self.layers as i32;
+        for j in -n..ny + n {
+            for i in -n..nx + n {
                 if (0..nx).contains(&i) && (0..ny).contains(&j) {
                     continue;
                 }
@@ -116,11 +138,11 @@ impl BoundarySamples {
     }
 
     /// The tank walls for the hexagonal packing: the sites of the fluid's hexagonal lattice
-    /// ([`crate::packing`], anchored at `lo`) outside the interior `[lo, hi]` and within two
-    /// spacings of it, each with the fluid's area d², so that fluid next to a wall sees its
+    /// ([`crate::packing`], anchored at `lo`) outside the interior `[lo, hi]` and within
+    /// [`Self::layers`] spacings of it, each with the fluid's area d², so that fluid next to a wall sees its
     /// lattice continue.
     pub fn add_hexagonal_tank(&mut self, lo: [f64; 2], hi: [f64; 2], d: f64, body: BodyId) {
-        let reach = 2.0 * d;
+        let reach = self.layers as f64 * d;
         let outer = (
             [lo[0] - reach, lo[1] - reach],
             [hi[0] + reach, hi[1] + reach],
@@ -169,7 +191,8 @@ impl BoundarySamples {
         }
     }
 
-    /// A solid box: its two outermost layers (the inside is never reached by fluid).
+    /// A solid box: its [`Self::layers`] outermost layers (the inside is never reached by
+    /// fluid).
     pub fn add_rect(&mut self, lo: Vec2, hi: Vec2, d: f32, body: BodyId) {
         let nx = ((hi.x - lo.x) / d).round().max(1.0) as i32;
         let ny = ((hi.y - lo.y) / d).round().max(1.0) as i32;
@@ -178,7 +201,7 @@ impl BoundarySamples {
         for j in 0..ny {
             for i in 0..nx {
                 let depth = i.min(j).min(nx - 1 - i).min(ny - 1 - j);
-                if depth < 2 {
+                if depth < self.layers as i32 {
                     self.positions.push(Vec2::new(
                         lo.x + (i as f32 + 0.5) * dx,
                         lo.y + (j as f32 + 0.5) * dy,
@@ -191,7 +214,7 @@ impl BoundarySamples {
     }
 
     /// A solid box for the hexagonal packing: the sites of the fluid's hexagonal lattice
-    /// (anchored at `anchor`) in its two outermost layers, each with the fluid's area d², so
+    /// (anchored at `anchor`) in its [`Self::layers`] outermost layers, each with the fluid's area d², so
     /// that water beside the box sees its own lattice continue: ρ0·g·(H − y) is then the
     /// equilibrium beside the box as beside the tank's walls (a box sampled on the square grid
     /// next to hexagonal water moved a pool 1.5 m deep at 4.9 m/s beside its face). The outer
@@ -229,7 +252,7 @@ impl BoundarySamples {
                 .min(inner_hi[0] - x)
                 .min(y - inner_lo[1])
                 .min(inner_hi[1] - y);
-            if depth < 1.5 * d {
+            if depth < (self.layers as f64 - 0.5) * d {
                 self.positions.push(p);
                 self.bodies.push(body);
                 self.lattice_area.push(Some((d * d) as f32));
@@ -247,7 +270,8 @@ impl BoundarySamples {
         }
     }
 
-    /// A wall along a polyline: two parallel rows at ±d/2 from the line, spacing ≈ d.
+    /// A wall along a polyline: [`Self::layers`] parallel rows, d apart and centred on the
+    /// line (±d/2 for two), spacing ≈ d.
     pub fn add_polyline(&mut self, points: &[Vec2], d: f32, body: BodyId) {
         for seg in points.windows(2) {
             let (a, b) = (seg[0], seg[1]);
@@ -262,7 +286,8 @@ impl BoundarySamples {
             // Include the end point of the last segment only; inner joints are shared.
             for k in 0..count {
                 let c = a + t * (k as f32 + 0.5) * step;
-                for side in [-0.5f32, 0.5] {
+                for row in 0..self.layers {
+                    let side = row as f32 - 0.5 * (self.layers as f32 - 1.0);
                     self.positions.push(c + n * side * d);
                     self.bodies.push(body);
                     self.lattice_area.push(None);
@@ -308,28 +333,29 @@ pub fn first_layer_margins(walls: &[Vec2], lo: Vec2, hi: Vec2, d: f32) -> (Vec2,
     )
 }
 
-/// γ: the ratio of the kernel sum over two lattice rows to the sum over a full lattice
-/// neighbourhood, so that a two-layer straight wall gets exactly the fluid's volume d².
-pub fn wall_volume_correction(kernel: &CubicSpline, d: f32) -> f32 {
+/// γ: the ratio of the kernel sum over a wall's [`wall_layers`] lattice rows to the sum over
+/// a full lattice neighbourhood, so that a straight wall gets exactly the fluid's volume d².
+pub fn wall_volume_correction(kernel: &Kernel, d: f32) -> f32 {
     let reach = (kernel.support() / d).ceil() as i32 + 1;
+    let layers = wall_layers(kernel, d) as i32;
     let mut full = 0.0f64;
-    let mut two_rows = 0.0f64;
+    let mut wall_rows = 0.0f64;
     for j in -reach..=reach {
         for i in -reach..=reach {
             let w = kernel.w(Vec2::new(i as f32 * d, j as f32 * d).length()) as f64;
             full += w;
-            // The particle's own row and the row behind it.
-            if j == 0 || j == -1 {
-                two_rows += w;
+            // The particle's own row and the rows behind it.
+            if (-layers + 1..=0).contains(&j) {
+                wall_rows += w;
             }
         }
     }
-    (two_rows / full) as f32
+    (wall_rows / full) as f32
 }
 
 /// Akinci volumes `Ψ_b = γ / Σ_k W_bk` of boundary particles already sorted in `grid`, for
 /// the particles whose `volume` entry is not already positive (lattice walls come with theirs).
-pub fn volumes(grid: &Grid, kernel: &CubicSpline, gamma: f32, volume: &mut [f32]) {
+pub fn volumes(grid: &Grid, kernel: &Kernel, gamma: f32, volume: &mut [f32]) {
     use crate::par::prelude::*;
     let pts = grid.sorted_points();
     volume
@@ -352,7 +378,7 @@ mod tests {
     #[test]
     fn correction_is_two_rows_over_three_for_h_equal_2d() {
         let d = 0.02;
-        let k = CubicSpline::new(2.0 * d);
+        let k = Kernel::cubic_spline(2.0 * d);
         let g = wall_volume_correction(&k, d);
         // W(0) = k, W(d) = k/4, W(√2 d) ≈ 0.0503k: full = 2.201k, two rows = 1.8505k.
         assert!((g - 0.8408).abs() < 1e-3, "gamma = {g}");
@@ -361,8 +387,8 @@ mod tests {
     #[test]
     fn straight_wall_particles_get_the_lattice_volume() {
         let d = 0.02;
-        let k = CubicSpline::new(2.0 * d);
-        let mut s = BoundarySamples::default();
+        let k = Kernel::cubic_spline(2.0 * d);
+        let mut s = BoundarySamples::new(2);
         s.add_tank(Vec2::ZERO, Vec2::new(2.0, 1.0), d, 0);
         let mut grid = Grid::new(k.support());
         grid.build(&s.positions);
@@ -387,7 +413,7 @@ mod tests {
     fn the_first_wall_layer_is_half_a_spacing_out_on_the_square_lattice_and_the_rows_on_the_hexagonal(
     ) {
         let (lo, hi, d) = (Vec2::new(0.0, 0.0), Vec2::new(2.66, 1.25), 0.15);
-        let mut square = BoundarySamples::default();
+        let mut square = BoundarySamples::new(2);
         square.add_tank(lo, hi, d, 0);
         let (m_lo, m_hi) = first_layer_margins(&square.positions, lo, hi, d);
         // The square walls are stretched to fit the interior: their first layer is half a
@@ -402,7 +428,7 @@ mod tests {
             crate::packing::ROW_SPACING as f32 * d,
         );
         let hi = Vec2::new(2.66, 1.06);
-        let mut hexagonal = BoundarySamples::default();
+        let mut hexagonal = BoundarySamples::new(2);
         hexagonal.add_hexagonal_tank([0.0, 0.0], [2.66, 1.06], d as f64, 0);
         let (m_lo, m_hi) = first_layer_margins(&hexagonal.positions, lo, hi, d);
         assert!(
@@ -424,7 +450,7 @@ mod tests {
     #[test]
     fn tank_walls_are_two_layers_all_round() {
         let d = 0.1;
-        let mut s = BoundarySamples::default();
+        let mut s = BoundarySamples::new(2);
         s.add_tank(Vec2::ZERO, Vec2::new(1.0, 0.5), d, 0);
         // (10 + 4) x (5 + 4) minus the 10 x 5 interior.
         assert_eq!(s.positions.len(), 14 * 9 - 50);

@@ -220,12 +220,12 @@ impl CoupledBodies {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kernel::CubicSpline;
+    use crate::kernel::Kernel;
 
     /// A body of two layers of boundary particles along a flat face and a corner, fluid
     /// particles in front of it, every fluid–wall pair within the support.
     struct Contact {
-        kernel: CubicSpline,
+        kernel: Kernel,
         fluid: Vec<Vec2>,
         walls: Vec<Vec2>,
         volume: Vec<f32>,
@@ -236,7 +236,7 @@ mod tests {
 
     fn contact(inverse_mass: f32) -> Contact {
         let d = 0.01f32;
-        let kernel = CubicSpline::new(2.0 * d);
+        let kernel = Kernel::cubic_spline(2.0 * d);
         let mut walls = Vec::new();
         for layer in 0..2 {
             for i in 0..12 {

@@ -26,7 +26,7 @@ pub mod spec;
 use glam::Vec2;
 use rapier2d::prelude as rp;
 
-use crate::kernel::CubicSpline;
+use crate::kernel::Kernel;
 pub use spec::{BodyJoint, BodyShape, BodySpec, MAX_BODIES};
 
 /// What a user or an output sees of one body.
@@ -189,7 +189,7 @@ impl RigidBodies {
         spec: &BodySpec,
         tank_offset: Vec2,
         d: f32,
-        kernel: &CubicSpline,
+        kernel: &Kernel,
     ) -> (usize, Vec<Vec2>, Vec<f32>) {
         let position = Vec2::new(spec.position[0] as f32, spec.position[1] as f32) + tank_offset;
         let builder = rp::RigidBodyBuilder::dynamic()
@@ -574,7 +574,7 @@ mod tests {
         let (d, dt, g) = (0.01, 0.0005, Vec2::new(0.0, -9.81));
         let mut bodies = RigidBodies::new(Vec2::ZERO, Vec2::new(2.0, 1.0), g);
         let spec = BodySpec::new_box([0.4, 0.2], 1000.0, [1.0, 0.1]);
-        bodies.add(&spec, Vec2::ZERO, d, &CubicSpline::new(2.0 * d));
+        bodies.add(&spec, Vec2::ZERO, d, &Kernel::cubic_spline(2.0 * d));
         let mass = 1000.0 * 0.4 * 0.2;
         let push = BodyImpulse {
             linear: 10.0 * mass * dt * g,

@@ -1,32 +1,43 @@
-//! Boundary particles on a rigid body, in the body's own frame (Akinci et al. 2012, §3): two
-//! layers inside the outline, at d/2 and 3d/2 from it, so that fluid pressed against the body
+//! Boundary particles on a rigid body, in the body's own frame (Akinci et al. 2012, §3): as
+//! many layers inside the outline as the walls have ([`crate::boundary::wall_layers`]), at
+//! d/2, 3d/2, … from it (layers that would pass the body's middle are left out), so that
+//! fluid pressed against the body
 //! has its centres d/2 outside the outline, as it has against the tank's walls. The volumes
 //! Ψ_b come from the body's own samples ([`crate::boundary::volumes`]'s rule), so they do not
 //! change as the body moves.
 
 use glam::Vec2;
 
-use crate::boundary::{volumes, wall_volume_correction};
-use crate::kernel::CubicSpline;
+use crate::boundary::{volumes, wall_layers, wall_volume_correction};
+use crate::kernel::Kernel;
 use crate::neighbors::Grid;
 
 use super::spec::BodySpec;
 
 /// The body's boundary particles in its frame (relative to its position, unrotated) and
 /// their volumes Ψ_b, m².
-pub fn sample(spec: &BodySpec, d: f32, kernel: &CubicSpline) -> (Vec<Vec2>, Vec<f32>) {
+pub fn sample(spec: &BodySpec, d: f32, kernel: &Kernel) -> (Vec<Vec2>, Vec<f32>) {
     let mut local = Vec::new();
-    for depth in [0.5 * d, 1.5 * d] {
+    for layer in 0..wall_layers(kernel, d) {
+        let depth = (layer as f32 + 0.5) * d;
         match spec.polygon() {
             Some(outline) => {
                 let outline: Vec<Vec2> = outline
                     .iter()
                     .map(|p| Vec2::new(p[0] as f32, p[1] as f32))
                     .collect();
-                sample_polygon(&inset(&outline, depth), d, &mut local);
+                let inner = inset(&outline, depth);
+                // Past the middle the moved edges turn round: the body is thinner there.
+                if layer > 0 && !same_turn(&outline, &inner) {
+                    break;
+                }
+                sample_polygon(&inner, d, &mut local);
             }
             None => {
                 let r = spec.radius.unwrap_or(0.0) as f32 - depth;
+                if layer > 0 && r < 0.0 {
+                    break;
+                }
                 let count = ((std::f32::consts::TAU * r / d).round() as usize).max(3);
                 for k in 0..count {
                     let a = std::f32::consts::TAU * k as f32 / count as f32;
@@ -68,6 +79,18 @@ fn inset(outline: &[Vec2], depth: f32) -> Vec<Vec2> {
         .collect()
 }
 
+/// Whether no edge of `inner` runs against the same edge of `outline` (an inset polygon that
+/// has not passed the outline's middle; one that reaches it exactly, a body three spacings
+/// thick, collapses to a line and is kept).
+fn same_turn(outline: &[Vec2], inner: &[Vec2]) -> bool {
+    let n = outline.len();
+    (0..n).all(|k| {
+        let e = outline[(k + 1) % n] - outline[k];
+        let f = inner[(k + 1) % n] - inner[k];
+        e.dot(f) >= -1.0e-3 * e.length_squared()
+    })
+}
+
 /// Particles along a closed polygon at spacing ≈ d, one on every vertex.
 fn sample_polygon(polygon: &[Vec2], d: f32, out: &mut Vec<Vec2>) {
     let n = polygon.len();
@@ -87,7 +110,7 @@ mod tests {
     #[test]
     fn a_box_is_two_layers_inside_its_outline_at_the_spacing() {
         let d = 0.02;
-        let kernel = CubicSpline::new(2.0 * d);
+        let kernel = Kernel::cubic_spline(2.0 * d);
         let spec = BodySpec::new_box([0.4, 0.2], 500.0, [1.0, 1.0]);
         let (local, volume) = sample(&spec, d, &kernel);
         // Outer layer: a 0.38 x 0.18 rectangle, 19 + 9 + 19 + 9 samples; inner: 0.34 x 0.14.
@@ -116,7 +139,7 @@ mod tests {
     #[test]
     fn a_circle_has_rings_at_half_and_one_and_a_half_spacings_in() {
         let d = 0.01;
-        let kernel = CubicSpline::new(2.0 * d);
+        let kernel = Kernel::cubic_spline(2.0 * d);
         let spec = BodySpec::new_circle(0.1, 250.0, [1.0, 1.0]);
         let (local, volume) = sample(&spec, d, &kernel);
         let outer = local

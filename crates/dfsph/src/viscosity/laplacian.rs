@@ -9,7 +9,7 @@
 use glam::Vec2;
 
 use super::ViscosityModel;
-use crate::kernel::CubicSpline;
+use crate::kernel::Kernel;
 use crate::scene::ViscosityParams;
 use crate::settings::SolverSettings;
 use crate::step::StepContext;
@@ -32,7 +32,7 @@ impl Laplacian {
     }
 
     /// `0.01h²`, m²: keeps `(v_ij·x_ij)/|x_ij|²` finite for particles on top of each other.
-    pub fn regularisation(kernel: &CubicSpline) -> f32 {
+    pub fn regularisation(kernel: &Kernel) -> f32 {
         0.01 * kernel.support() * kernel.support()
     }
 
