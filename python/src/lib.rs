@@ -12,9 +12,18 @@
 //! Steps run with the GIL released, in the simulation's own thread pool when it was given a
 //! thread count, and a long `advance` returns to Python every [`SIGNAL_CHECK`] to let Ctrl-C
 //! (`KeyboardInterrupt`) through.
+//!
+//! Threads. One simulation may be used from several Python threads. Its state sits behind a
+//! lock that is only ever waited for with the GIL released ([`PySimulation::lock`]): a thread
+//! that held the GIL while it waited for a stepping thread, which needs the GIL back between
+//! its chunks, would hang both. `step` and `advance` hold the lock one chunk of steps
+//! ([`SIGNAL_CHECK`]) at a time, so another thread's reads and actions (`positions`, `time`,
+//! `push`, ...) wait at most one chunk and then see the state between two steps; the stepping
+//! call goes on after them.
 
 use std::borrow::Cow;
-use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Mutex, MutexGuard, TryLockError};
 use std::time::{Duration, Instant};
 
 use dfsph::actions::ActionOutcome;
@@ -29,6 +38,10 @@ use pyo3::types::{PyDict, PyString};
 
 /// How long `advance` steps with the GIL released before it checks for signals.
 const SIGNAL_CHECK: Duration = Duration::from_millis(100);
+
+/// Longest a stepping thread waits between two chunks for other threads to take their turn
+/// with the state (a reader that holds it longer is waited for at the next chunk).
+const YIELD_LIMIT: Duration = Duration::from_millis(50);
 
 /// Most worker threads a simulation may ask for: more than any machine's cores, far fewer
 /// than would exhaust the process's threads.
@@ -71,6 +84,9 @@ impl State {
 #[pyclass(module = "dfsph2d._dfsph2d", name = "Simulation")]
 struct PySimulation {
     state: Mutex<State>,
+    /// Threads waiting for [`Self::state`]: a stepping thread lets them in between its chunks
+    /// (the lock is not fair, and the stepper would otherwise take it straight back).
+    waiting: AtomicUsize,
 }
 
 /// The scene `scene` names: a dict (the JSON scene format), a built-in name, or the path of a
@@ -142,15 +158,50 @@ fn finite(name: &str, values: &[f32]) -> PyResult<()> {
 }
 
 impl PySimulation {
-    fn lock(&self) -> std::sync::MutexGuard<'_, State> {
-        // A panic inside a step (a solver bug) poisons the lock; the state is still the one
-        // the step left, which the caller can inspect.
-        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    /// The state, locked. The lock is taken while holding the GIL only when it is free;
+    /// otherwise this thread waits for it with the GIL released, since its holder may need
+    /// the GIL to finish (a stepping thread between chunks).
+    fn lock(&self, py: Python<'_>) -> MutexGuard<'_, State> {
+        let mut counted = false;
+        let guard = loop {
+            match self.state.try_lock() {
+                Ok(guard) => break guard,
+                // A panic inside a step (a solver bug) poisons the lock; the state is still
+                // the one the step left, which the caller can inspect.
+                Err(TryLockError::Poisoned(e)) => break e.into_inner(),
+                Err(TryLockError::WouldBlock) => {
+                    if !counted {
+                        self.waiting.fetch_add(1, Ordering::SeqCst);
+                        counted = true;
+                    }
+                    // Wait until the holder lets go, then try again with the GIL.
+                    py.detach(|| drop(self.state.lock()));
+                }
+            }
+        };
+        if counted {
+            self.waiting.fetch_sub(1, Ordering::SeqCst);
+        }
+        guard
+    }
+
+    /// Between two chunks of steps: let the threads waiting for the state in first (for at
+    /// most [`YIELD_LIMIT`]), with the GIL released so that they can take it.
+    fn let_waiters_in(&self, py: Python<'_>) {
+        if self.waiting.load(Ordering::SeqCst) == 0 {
+            return;
+        }
+        py.detach(|| {
+            let start = Instant::now();
+            while self.waiting.load(Ordering::SeqCst) > 0 && start.elapsed() < YIELD_LIMIT {
+                std::thread::sleep(Duration::from_micros(50));
+            }
+        });
     }
 
     /// Apply `action` between steps.
     fn act(&self, py: Python<'_>, what: &str, action: Action) -> PyResult<ActionOutcome> {
-        let mut guard = self.lock();
+        let mut guard = self.lock(py);
         let state: &mut State = &mut guard;
         let outcome = py.detach(|| state.in_pool(|sim| sim.apply(&action)));
         accepted(what, outcome)
@@ -165,9 +216,10 @@ impl PySimulation {
         py: Python<'py>,
         mut more: impl FnMut(&Simulation) -> bool + Send,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let mut guard = self.lock();
-        let state: &mut State = &mut guard;
         loop {
+            // The lock is held for one chunk at a time: other threads get in between.
+            let mut guard = self.lock(py);
+            let state: &mut State = &mut guard;
             let (done, stuck) = py.detach(|| {
                 state.in_pool(|sim| {
                     let start = Instant::now();
@@ -193,13 +245,19 @@ impl PySimulation {
             if done {
                 return to_python(py, state.sim.stats());
             }
+            drop(guard);
+            self.let_waiters_in(py);
             py.check_signals()?;
         }
     }
 
     /// Per-particle values (the solver's order) rearranged into id order.
-    fn by_id<T: Copy>(&self, pick: impl for<'a> FnOnce(&'a Simulation) -> Cow<'a, [T]>) -> Vec<T> {
-        let state = self.lock();
+    fn by_id<T: Copy>(
+        &self,
+        py: Python<'_>,
+        pick: impl for<'a> FnOnce(&'a Simulation) -> Cow<'a, [T]>,
+    ) -> Vec<T> {
+        let state = self.lock(py);
         let values = pick(&state.sim);
         state.id_order().into_iter().map(|i| values[i]).collect()
     }
@@ -235,6 +293,7 @@ impl PySimulation {
             .map_err(scene_error)?;
         Ok(Self {
             state: Mutex::new(State { sim, pool }),
+            waiting: AtomicUsize::new(0),
         })
     }
 
@@ -256,60 +315,60 @@ impl PySimulation {
                 "seconds must be a finite number >= 0, not {seconds}"
             )));
         }
-        let until = self.lock().sim.time() + seconds;
+        let until = self.lock(py).sim.time() + seconds;
         self.step_while(py, |sim| sim.time() < until)
     }
 
     /// Simulated time, s.
     #[getter]
-    fn time(&self) -> f64 {
-        self.lock().sim.time()
+    fn time(&self, py: Python<'_>) -> f64 {
+        self.lock(py).sim.time()
     }
 
     /// Steps taken.
     #[getter]
-    fn step_count(&self) -> u64 {
-        self.lock().sim.step_count()
+    fn step_count(&self, py: Python<'_>) -> u64 {
+        self.lock(py).sim.step_count()
     }
 
     /// Fluid particles.
     #[getter]
-    fn particle_count(&self) -> usize {
-        self.lock().sim.fluid_count()
+    fn particle_count(&self, py: Python<'_>) -> usize {
+        self.lock(py).sim.fluid_count()
     }
 
-    fn __len__(&self) -> usize {
-        self.particle_count()
+    fn __len__(&self, py: Python<'_>) -> usize {
+        self.particle_count(py)
     }
 
     /// Particle radius r, m (the spacing is d = 2r).
     #[getter]
-    fn particle_radius(&self) -> f32 {
-        self.lock().sim.particle_radius()
+    fn particle_radius(&self, py: Python<'_>) -> f32 {
+        self.lock(py).sim.particle_radius()
     }
 
     /// Particle mass, kg per metre of depth.
     #[getter]
-    fn particle_mass(&self) -> f32 {
-        self.lock().sim.particle_mass()
+    fn particle_mass(&self, py: Python<'_>) -> f32 {
+        self.lock(py).sim.particle_mass()
     }
 
     /// Rest density ρ0, kg/m³.
     #[getter]
-    fn rest_density(&self) -> f32 {
-        self.lock().sim.rest_density()
+    fn rest_density(&self, py: Python<'_>) -> f32 {
+        self.lock(py).sim.rest_density()
     }
 
     /// The scene as a dict (its JSON form, every default filled in).
     #[getter]
     fn scene<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        to_python(py, self.lock().sim.scene())
+        to_python(py, self.lock(py).sim.scene())
     }
 
     /// The last step's diagnostics.
     #[getter]
     fn diagnostics<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let state = self.lock();
+        let state = self.lock(py);
         let mut stats = serde_json::to_value(state.sim.stats())
             .map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
         if let serde_json::Value::Object(map) = &mut stats {
@@ -325,25 +384,25 @@ impl PySimulation {
     /// Particle ids, uint32 (N,).
     #[getter]
     fn ids<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u32>> {
-        self.by_id(|s| Cow::Borrowed(s.ids())).into_pyarray(py)
+        self.by_id(py, |s| Cow::Borrowed(s.ids())).into_pyarray(py)
     }
 
     /// Positions, m, float32 (N, 2).
     #[getter]
     fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f32>> {
-        points_array(py, self.by_id(|s| Cow::Borrowed(s.positions())))
+        points_array(py, self.by_id(py, |s| Cow::Borrowed(s.positions())))
     }
 
     /// Velocities, m/s, float32 (N, 2).
     #[getter]
     fn velocities<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f32>> {
-        points_array(py, self.by_id(|s| Cow::Borrowed(s.velocities())))
+        points_array(py, self.by_id(py, |s| Cow::Borrowed(s.velocities())))
     }
 
     /// Densities, kg/m³, float32 (N,).
     #[getter]
     fn densities<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
-        self.by_id(|s| {
+        self.by_id(py, |s| {
             let rho0 = s.rest_density();
             Cow::Owned(s.density_ratios().iter().map(|r| r * rho0).collect())
         })
@@ -353,7 +412,7 @@ impl PySimulation {
     /// Pressures, Pa, float32 (N,).
     #[getter]
     fn pressures<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
-        self.by_id(|s| {
+        self.by_id(py, |s| {
             let rho0 = s.rest_density();
             Cow::Owned(
                 s.interpolated_pressures_over_rho0()
@@ -367,7 +426,7 @@ impl PySimulation {
 
     /// Everything at one instant: time, ids, positions, velocities, densities, pressures.
     fn snapshot<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let snap = self.lock().sim.snapshot();
+        let snap = self.lock(py).sim.snapshot();
         let out = PyDict::new(py);
         out.set_item("time", snap.time)?;
         out.set_item("ids", snap.id.into_pyarray(py))?;
@@ -381,7 +440,7 @@ impl PySimulation {
     /// The scene's probes, name → value (units in `probe_units`).
     #[getter]
     fn probes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let state = self.lock();
+        let state = self.lock(py);
         let out = PyDict::new(py);
         let values = probes::sample_all(&state.sim);
         for (probe, value) in state.sim.scene().probes.iter().zip(values) {
@@ -393,7 +452,7 @@ impl PySimulation {
     /// The unit of each probe, name → unit.
     #[getter]
     fn probe_units<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let state = self.lock();
+        let state = self.lock(py);
         let out = PyDict::new(py);
         for probe in &state.sim.scene().probes {
             out.set_item(probe.name(), probe.unit())?;
@@ -404,14 +463,14 @@ impl PySimulation {
     /// The largest x of a fluid particle with at least `min_neighbors` fluid neighbours,
     /// from the tank's left wall, m (None without one).
     #[pyo3(signature = (min_neighbors = 3))]
-    fn front_position(&self, min_neighbors: usize) -> Option<f64> {
-        self.lock().sim.front_position(min_neighbors)
+    fn front_position(&self, py: Python<'_>, min_neighbors: usize) -> Option<f64> {
+        self.lock(py).sim.front_position(min_neighbors)
     }
 
     /// Total momentum of the fluid and the rigid bodies, kg·m/s per metre of depth.
     #[getter]
-    fn momentum(&self) -> (f32, f32) {
-        let p = self.lock().sim.momentum();
+    fn momentum(&self, py: Python<'_>) -> (f32, f32) {
+        let p = self.lock(py).sim.momentum();
         (p.x, p.y)
     }
 
@@ -419,7 +478,7 @@ impl PySimulation {
     /// `angular_velocity` rad/s, `mass` kg/m, `spec` the body as a scene's `bodies` entry).
     #[getter]
     fn bodies<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        let states = self.lock().sim.rigid_bodies();
+        let states = self.lock(py).sim.rigid_bodies();
         states
             .into_iter()
             .map(|b| {
@@ -538,8 +597,8 @@ impl PySimulation {
         Ok(())
     }
 
-    fn __repr__(&self) -> String {
-        let state = self.lock();
+    fn __repr__(&self, py: Python<'_>) -> String {
+        let state = self.lock(py);
         format!(
             "<dfsph2d.Simulation '{}': {} particles, t = {:.4} s, {} steps>",
             state.sim.scene().name,

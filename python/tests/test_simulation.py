@@ -253,3 +253,40 @@ def test_two_simulations_step_in_two_threads_like_one():
     for t in threads:
         t.join()
     assert np.array_equal(side[0], alone[0]) and np.array_equal(side[1], alone[0])
+
+
+def test_other_threads_read_and_act_while_one_advances():
+    """While one thread advances, another reads `time`, `positions` and `diagnostics` and
+    pushes: each call waits at most one chunk of steps, the advance goes on, and nothing
+    hangs. Run in a child interpreter with a timeout, so that a deadlock fails the test
+    instead of hanging it (both threads hung at 0 % CPU before the lock was waited for with
+    the GIL released)."""
+    script = """
+import threading, time
+import dfsph2d
+sim = dfsph2d.Simulation("dam-break", threads=1)
+done = []
+stepper = threading.Thread(target=lambda: done.append(sim.advance(0.5)))
+stepper.start()
+times, reads = [], 0
+while stepper.is_alive():
+    times.append(sim.time)
+    assert sim.positions.shape[0] == sim.particle_count
+    sim.diagnostics
+    sim.push(1.0, 0.5, 0.2, 5.0)
+    sim.release()
+    reads += 1
+stepper.join()
+assert done and sim.time >= 0.5, sim.time
+# The reads saw the clock move while the other thread stepped.
+assert reads >= 2 and len(set(times)) >= 2, (reads, sorted(set(times))[:5])
+print("ok", reads)
+"""
+    out = subprocess.run(
+        [os.environ.get("PYTHON", __import__("sys").executable), "-c", script],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("ok"), out.stdout
