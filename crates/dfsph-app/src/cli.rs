@@ -163,7 +163,8 @@ pub struct RunArgs {
     /// Output directory, created if missing. In an existing DIR, a run first removes the
     /// files an earlier run wrote there (listed in DIR/.dfsph2d-manifest: frames, stats.csv,
     /// probes.csv, particles.pvd, ...) and overwrites any other file of a name it writes;
-    /// every other file is kept. DIR/particles must not be a symbolic link.
+    /// every other file is kept. DIR/particles must not be a symbolic link; a symbolic link
+    /// where a file goes is replaced by the file, never written through.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
 

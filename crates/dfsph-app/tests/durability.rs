@@ -435,3 +435,43 @@ fn a_short_run_gets_no_note() {
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
     assert!(!text(&o.stderr).contains("note:"), "{}", text(&o.stderr));
 }
+
+/// Links planted in the output directory where the run writes (`stats.csv`,
+/// `particles/index.csv`, a frame's temporary file) are replaced by the run's files; the
+/// files they pointed to, outside the directory, are left as they were.
+#[test]
+fn links_planted_in_the_output_directory_are_replaced_not_written_through() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = coarse_scene(dir.path());
+    let victims = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    std::fs::create_dir_all(out.join("particles")).unwrap();
+    let planted = [
+        "stats.csv",
+        "particles/index.csv",
+        "particles/00000.csv.tmp",
+    ];
+    for (k, name) in planted.iter().enumerate() {
+        let victim = victims.path().join(format!("victim{k}"));
+        std::fs::write(&victim, "keep me\n").unwrap();
+        std::os::unix::fs::symlink(&victim, out.join(name)).unwrap();
+    }
+    let run = dfsph2d(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--until",
+        "0.05",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(run.status.success(), "{}", text(&run.stderr));
+    for k in 0..planted.len() {
+        let victim = victims.path().join(format!("victim{k}"));
+        assert_eq!(std::fs::read_to_string(victim).unwrap(), "keep me\n");
+    }
+    let stats = std::fs::symlink_metadata(out.join("stats.csv")).unwrap();
+    assert!(!stats.file_type().is_symlink());
+    assert!(std::fs::read_to_string(out.join("stats.csv"))
+        .unwrap()
+        .starts_with("step,"));
+}

@@ -39,13 +39,32 @@ pub struct AppendFile<W: Sink = File> {
 }
 
 impl AppendFile<File> {
-    /// Create (or truncate) `path`.
+    /// Create (or truncate) `path`, never through a symbolic link ([`create_file`]).
     pub fn create(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref().to_path_buf();
         let file =
-            File::create(&path).with_context(|| format!("cannot create `{}`", path.display()))?;
+            create_file(&path).with_context(|| format!("cannot create `{}`", path.display()))?;
         Ok(Self::new(file, path))
     }
+}
+
+/// Create (or truncate) the file `path` for writing. A symbolic link at `path` is replaced
+/// by the new file, never written through: an output directory is the user's, but a link
+/// planted in it as `stats.csv` must not make a run overwrite the file it points to,
+/// outside the directory. On Unix the file is opened with `O_NOFOLLOW`, so a link made
+/// between the check and the open fails the open instead of being followed.
+pub fn create_file(path: &Path) -> std::io::Result<File> {
+    if std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink()) {
+        std::fs::remove_file(path)?;
+    }
+    let mut options = std::fs::OpenOptions::new();
+    options.write(true).create(true).truncate(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NOFOLLOW);
+    }
+    options.open(path)
 }
 
 impl<W: Sink> AppendFile<W> {
@@ -155,5 +174,25 @@ pub(crate) mod tests {
         let msg = format!("{:#}", f.append("ghijkl").unwrap_err());
         assert!(msg.starts_with("cannot write `out/a.csv`: "), "{msg}");
         assert_eq!(f.into_inner().data, b"abc\ndef\n");
+    }
+
+    /// A link planted where the file goes is replaced, and the file it pointed to is left
+    /// as it was.
+    #[cfg(unix)]
+    #[test]
+    fn a_symbolic_link_at_the_path_is_replaced_not_written_through() {
+        let dir = tempfile::tempdir().unwrap();
+        let victim = dir.path().join("victim.txt");
+        std::fs::write(&victim, "keep me\n").unwrap();
+        let path = dir.path().join("stats.csv");
+        std::os::unix::fs::symlink(&victim, &path).unwrap();
+        let mut f = AppendFile::create(&path).unwrap();
+        f.append("a,b").unwrap();
+        assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep me\n");
+        assert!(!std::fs::symlink_metadata(&path)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "a,b\n");
     }
 }

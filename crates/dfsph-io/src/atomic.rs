@@ -33,8 +33,8 @@ impl AtomicFile {
     pub fn create(path: impl AsRef<Path>) -> Result<Self> {
         let target = path.as_ref().to_path_buf();
         let tmp = tmp_path(&target);
-        let file =
-            File::create(&tmp).with_context(|| format!("cannot create `{}`", tmp.display()))?;
+        let file = crate::append::create_file(&tmp)
+            .with_context(|| format!("cannot create `{}`", tmp.display()))?;
         Ok(Self {
             target,
             tmp,
@@ -145,9 +145,17 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("a.txt");
         std::fs::write(&path, "old").unwrap();
-        // `a.txt.tmp` opens /dev/full, where every write fails with ENOSPC.
-        std::os::unix::fs::symlink("/dev/full", tmp_path(&path)).unwrap();
-        let mut file = AtomicFile::create(&path).unwrap();
+        // The temporary file is /dev/full, where every write fails with ENOSPC. (A link
+        // planted at `a.txt.tmp` would be replaced, not followed: `create_file`.)
+        let full = std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap();
+        let mut file = AtomicFile {
+            target: path.clone(),
+            tmp: tmp_path(&path),
+            writer: Some(BufWriter::new(full)),
+        };
         file.write_all(b"new, small enough to stay in the buffer")
             .unwrap();
         let msg = format!("{:#}", file.commit().unwrap_err());
