@@ -28,7 +28,14 @@ class Simulation:
 
     ``threads``: worker threads of this simulation's own pool (``None``: the process-wide
     pool, one thread per core). Steps run with the GIL released, so other Python threads run
-    meanwhile, and several simulations can step in parallel threads.
+    meanwhile, and several simulations can step in parallel threads. One simulation may be
+    read and acted on from other threads while it steps: each such call waits for the end of
+    the stepper's current chunk of steps (0.1 s at most).
+
+    ``max_memory``: bytes (or a size such as ``"2G"``) the simulation may use, besides the
+    machine's own limits (available memory, a container's limit, ``ulimit -v``). A scene that
+    needs more raises ``MemoryError`` naming the limit, before anything large is allocated;
+    ``reset`` to another scene is held to the same limits.
 
     Particle arrays (``positions``, ``velocities``, ``densities``, ``pressures``, ``ids``)
     are fresh NumPy copies in increasing particle-id order, taken when read: the solver
@@ -38,7 +45,13 @@ class Simulation:
     per particle.
     """
 
-    def __init__(self, scene: SceneArg, *, threads: Optional[int] = None) -> None: ...
+    def __init__(
+        self,
+        scene: SceneArg,
+        *,
+        threads: Optional[int] = None,
+        max_memory: Optional[Union[int, str]] = None,
+    ) -> None: ...
     def step(self, n: int = 1) -> Dict[str, Any]:
         """Take ``n`` steps (each of the CFL Δt the solver chooses); returns the last step's
         diagnostics (see :attr:`diagnostics`)."""
@@ -128,7 +141,8 @@ class Simulation:
         """End a :meth:`push`."""
     def pour(self, x: float, y: float, radius: float, vx: float = 0.0, vy: float = 0.0) -> int:
         """Pour: fill a disc of ``radius`` (m) at (x, y) with water moving at (vx, vy) m/s,
-        where there is room. Returns the particles added."""
+        where there is room (at most 100 m/s, as a scene's water; faster raises ValueError).
+        Returns the particles added."""
     def add_wall(self, points: Sequence[Tuple[float, float]]) -> int:
         """Draw a wall along the polyline ``points`` (m). Returns the wall particles
         added."""

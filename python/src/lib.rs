@@ -32,7 +32,7 @@ use dfsph::{probes, Action, Scene, SceneError, Simulation, Vec2};
 use dfsph_io::input::one_line;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2};
-use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 
@@ -118,9 +118,14 @@ fn scene_from(py: Python<'_>, scene: &Bound<'_, PyAny>) -> PyResult<Scene> {
     dfsph_io::input::load_scene(&arg).map_err(PyValueError::new_err)
 }
 
-/// A scene the solver refuses, as `ValueError` in the command line's words.
+/// A scene the solver refuses, as `ValueError` in the command line's words; one too large
+/// for this process's memory as `MemoryError`, before anything large was allocated.
 fn scene_error(e: SceneError) -> PyErr {
-    PyValueError::new_err(format!("scene: {}", one_line(&e.to_string())))
+    let text = format!("scene: {}", one_line(&e.to_string()));
+    match e {
+        SceneError::Memory(_) => PyMemoryError::new_err(text),
+        _ => PyValueError::new_err(text),
+    }
 }
 
 /// A JSON-serialisable value as the Python object `json.loads` makes of it.
@@ -266,9 +271,34 @@ impl PySimulation {
 #[pymethods]
 impl PySimulation {
     #[new]
-    #[pyo3(signature = (scene, *, threads = None))]
-    fn new(py: Python<'_>, scene: &Bound<'_, PyAny>, threads: Option<usize>) -> PyResult<Self> {
+    #[pyo3(signature = (scene, *, threads = None, max_memory = None))]
+    fn new(
+        py: Python<'_>,
+        scene: &Bound<'_, PyAny>,
+        threads: Option<usize>,
+        max_memory: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
         let scene = scene_from(py, scene)?;
+        let max_memory = match max_memory {
+            None => None,
+            Some(v) if v.is_instance_of::<PyString>() => {
+                let text: String = v.extract()?;
+                Some(
+                    dfsph::memory::parse_bytes(&text)
+                        .map_err(|e| PyValueError::new_err(format!("max_memory: {e}")))?,
+                )
+            }
+            Some(v) => match v.extract::<u64>() {
+                Ok(bytes) if bytes > 0 => Some(bytes),
+                _ => {
+                    return Err(PyValueError::new_err(format!(
+                        "max_memory must be a number of bytes > 0 or a size such as \"2G\", not {}",
+                        v.repr()?
+                    )))
+                }
+            },
+        };
+        let limits = dfsph::memory::MemoryLimits::of_this_process(max_memory);
         let pool = match threads {
             None => None,
             Some(n) if n == 0 || n > MAX_THREADS => {
@@ -287,8 +317,8 @@ impl PySimulation {
         };
         let sim = py
             .detach(|| match &pool {
-                Some(pool) => pool.install(|| Simulation::new(&scene)),
-                None => Simulation::new(&scene),
+                Some(pool) => pool.install(|| Simulation::new_within(&scene, &limits)),
+                None => Simulation::new_within(&scene, &limits),
             })
             .map_err(scene_error)?;
         Ok(Self {

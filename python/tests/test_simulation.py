@@ -266,7 +266,7 @@ import threading, time
 import dfsph2d
 sim = dfsph2d.Simulation("dam-break", threads=1)
 done = []
-stepper = threading.Thread(target=lambda: done.append(sim.advance(0.5)))
+stepper = threading.Thread(target=lambda: done.append(sim.advance(0.3)))
 stepper.start()
 times, reads = [], 0
 while stepper.is_alive():
@@ -277,7 +277,7 @@ while stepper.is_alive():
     sim.release()
     reads += 1
 stepper.join()
-assert done and sim.time >= 0.5, sim.time
+assert done and sim.time >= 0.3, sim.time
 # The reads saw the clock move while the other thread stepped.
 assert reads >= 2 and len(set(times)) >= 2, (reads, sorted(set(times))[:5])
 print("ok", reads)
@@ -290,3 +290,16 @@ print("ok", reads)
     )
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith("ok"), out.stdout
+
+
+def test_a_scene_too_large_for_the_memory_limit_raises_memory_error():
+    """The estimate is checked before anything large is allocated, against the limit given
+    (and the machine's own): one MemoryError that says how much the scene needs."""
+    with pytest.raises(MemoryError, match=r"needs about .* more than --max-memory"):
+        dfsph2d.Simulation("dam-break", max_memory="1M")
+    with pytest.raises(ValueError, match="max_memory"):
+        dfsph2d.Simulation("dam-break", max_memory=-5)
+    with pytest.raises(ValueError, match="max_memory"):
+        dfsph2d.Simulation("dam-break", max_memory="lots")
+    sim = dfsph2d.Simulation("dam-break", max_memory="200M")
+    assert sim.particle_count == 5000

@@ -213,7 +213,9 @@ fn run(args: RunArgs) -> Result<(), Failure> {
         &estimate,
         args.max_memory,
     )?;
-    let sim = Simulation::new(&scene)
+    // Within --max-memory too: a recording's reset to another scene is checked against it.
+    let limits = dfsph::memory::MemoryLimits::of_this_process(args.max_memory);
+    let sim = Simulation::new_within(&scene, &limits)
         .map_err(|e| Failure::input(format!("scene `{}`: {e}", args.scene)))?;
     if let Some(warning) = cut_short {
         let _ = writeln!(

@@ -10,7 +10,7 @@ use crate::boundary::{Body, BodyId, BoundarySamples};
 use crate::forces::PointerForce;
 use crate::neighbors::Grid;
 use crate::rigid::{BodySpec, MAX_BODIES};
-use crate::scene::{Packing, Scene, SolverParams, TimeStepParams, ViscosityParams};
+use crate::scene::{Packing, Scene, SceneError, SolverParams, TimeStepParams, ViscosityParams};
 use crate::simulation::Simulation;
 
 /// One user action. Held actions (`ShakeTank`, `Push`) stay in force until replaced.
@@ -128,10 +128,17 @@ impl Simulation {
                 radius,
                 velocity,
             } => {
-                if at.is_finite() && radius.is_finite() && velocity.is_finite() && *radius >= 0.0 {
-                    out.added = self.emit(*at, radius.min(1.0), *velocity);
-                } else {
+                // Poured water may move no faster than a scene's water may start
+                // (`scene::MAX_INITIAL_SPEED`): a pour at 1e20 m/s made every value
+                // non-finite within a step.
+                let max_speed = crate::scene::MAX_INITIAL_SPEED as f32;
+                if !(at.is_finite() && radius.is_finite() && velocity.is_finite() && *radius >= 0.0)
+                {
                     out.rejected = Some("emit needs a finite position, radius and velocity");
+                } else if velocity.length() > max_speed {
+                    out.rejected = Some("emit velocity is faster than 100 m/s");
+                } else {
+                    out.added = self.emit(*at, radius.min(1.0), *velocity);
                 }
             }
             Action::AddWall { polyline } => {
@@ -208,13 +215,17 @@ impl Simulation {
                     Some(scene) => scene.as_ref(),
                     None => &self.scene,
                 };
-                match Simulation::new(scene) {
+                let limits = crate::memory::MemoryLimits::of_this_process(self.max_memory);
+                match Simulation::new_within(scene, &limits) {
                     Ok(sim) => {
                         out.removed = self.fluid.len();
                         out.added = sim.fluid_count();
                         out.boundary_change =
                             sim.boundary_positions().len() as isize - self.boundary.len() as isize;
                         *self = sim;
+                    }
+                    Err(SceneError::Memory(_)) => {
+                        out.rejected = Some("the scene needs more memory than this process may use")
                     }
                     Err(_) => out.rejected = Some("invalid scene"),
                 }
@@ -713,6 +724,60 @@ mod tests {
         });
         assert_eq!(out.rejected, Some("invalid scene"));
         assert_eq!(sim.scene(), &other);
+    }
+
+    /// A pour no faster than a scene's water may start is taken; a faster one is refused,
+    /// and the water is left as it was.
+    #[test]
+    fn a_pour_faster_than_a_scene_allows_is_refused() {
+        let mut s = scene::builtin("dam-break").unwrap();
+        s.particle_radius = 0.04;
+        let mut sim = Simulation::new(&s).unwrap();
+        let n = sim.fluid_count();
+        let pour = |v: f32| Action::Emit {
+            at: Vec2::new(3.0, 2.0),
+            radius: 0.2,
+            velocity: Vec2::new(v, 0.0),
+        };
+        let out = sim.apply(&pour(1.0e20));
+        assert_eq!(out.rejected, Some("emit velocity is faster than 100 m/s"));
+        assert_eq!(sim.fluid_count(), n);
+        let out = sim.apply(&pour(-90.0));
+        assert_eq!(out.rejected, None);
+        assert!(out.added > 0 && sim.fluid_count() == n + out.added);
+    }
+
+    /// Building a simulation and resetting one to another scene are both held to the memory
+    /// limit the simulation was built within (here a user's, like `--max-memory`): one
+    /// refusal that names memory, the simulation untouched, nothing large allocated.
+    #[test]
+    fn a_scene_too_large_for_the_memory_limit_is_refused_at_build_and_at_reset() {
+        use crate::memory::{Limit, LimitSource, MemoryLimits};
+        let limits = MemoryLimits {
+            limits: vec![Limit {
+                source: LimitSource::User,
+                bytes: 64 << 20,
+                set_to: None,
+            }],
+        };
+        let mut small = scene::builtin("dam-break").unwrap();
+        small.particle_radius = 0.04;
+        let mut large = small.clone();
+        large.particle_radius = 0.002; // 400 times the particles: 125,000, over 64 MiB
+        match Simulation::new_within(&large, &limits) {
+            Err(SceneError::Memory(m)) => assert!(m.contains("needs about"), "{m}"),
+            other => panic!("not refused for memory: {:?}", other.err()),
+        }
+        let mut sim = Simulation::new_within(&small, &limits).unwrap();
+        let n = sim.fluid_count();
+        let out = sim.apply(&Action::Reset {
+            scene: Some(Box::new(large)),
+        });
+        assert_eq!(
+            out.rejected,
+            Some("the scene needs more memory than this process may use")
+        );
+        assert_eq!((sim.scene(), sim.fluid_count()), (&small, n));
     }
 
     #[test]

@@ -235,7 +235,13 @@ pub enum LimitSource {
     Cgroup,
     /// `RLIMIT_AS` (`ulimit -v`) less the address space the process has mapped already.
     AddressSpace,
+    /// WebAssembly's 4 GiB of linear memory less what the page's module has grown to.
+    WebAssembly,
 }
+
+/// The most linear memory a 32-bit WebAssembly module can address: 4 GiB.
+#[cfg(target_arch = "wasm32")]
+const WASM32_MEMORY: u64 = 1 << 32;
 
 /// One limit on the memory this process may use, bytes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -280,6 +286,15 @@ impl MemoryLimits {
                 set_to: Some(max),
             });
         }
+        #[cfg(target_arch = "wasm32")]
+        {
+            let grown = core::arch::wasm32::memory_size(0) as u64 * 65_536;
+            limits.push(Limit {
+                source: LimitSource::WebAssembly,
+                bytes: WASM32_MEMORY.saturating_sub(grown),
+                set_to: Some(WASM32_MEMORY),
+            });
+        }
         if let Some(max) = address_space_limit() {
             limits.push(Limit {
                 source: LimitSource::AddressSpace,
@@ -288,6 +303,14 @@ impl MemoryLimits {
             });
         }
         Self { limits }
+    }
+
+    /// The user's own limit (`--max-memory`), bytes, if one was given.
+    pub fn user(&self) -> Option<u64> {
+        self.limits
+            .iter()
+            .find(|l| l.source == LimitSource::User)
+            .map(|l| l.bytes)
     }
 
     /// `Ok` when `estimate` fits every limit; otherwise one line saying how much the scene
@@ -310,6 +333,11 @@ impl MemoryLimits {
             ),
             LimitSource::Cgroup => format!(
                 "what the cgroup's memory limit of {} leaves ({})",
+                format_bytes(limit.set_to.unwrap_or(limit.bytes)),
+                format_bytes(limit.bytes)
+            ),
+            LimitSource::WebAssembly => format!(
+                "what WebAssembly's {} of memory leaves this page ({})",
                 format_bytes(limit.set_to.unwrap_or(limit.bytes)),
                 format_bytes(limit.bytes)
             ),

@@ -345,6 +345,10 @@ pub enum SceneError {
     /// A value is of the right type but impossible.
     #[error("`{key}`: {message}")]
     Invalid { key: String, message: String },
+    /// The scene is valid but needs more memory than this process may use
+    /// ([`crate::memory::MemoryLimits::check`]'s sentence).
+    #[error("{0}")]
+    Memory(String),
 }
 
 pub(crate) fn invalid(key: impl Into<String>, message: impl Into<String>) -> SceneError {
@@ -354,12 +358,22 @@ pub(crate) fn invalid(key: impl Into<String>, message: impl Into<String>) -> Sce
     }
 }
 
-/// `v` at `key` is a finite number.
+/// `v` at `key` is a finite number, in the single precision the solver computes in as well
+/// as in the file's double precision: a body's `angle` of 1e39 is finite as read and infinite
+/// as used, and it once removed all the water.
 pub(crate) fn finite(key: &str, v: f64) -> Result<(), SceneError> {
-    if v.is_finite() {
-        Ok(())
-    } else {
+    if !v.is_finite() {
         Err(invalid(key, format!("must be a finite number, got {v}")))
+    } else if !(v as f32).is_finite() {
+        Err(invalid(
+            key,
+            format!(
+                "{v} is beyond the solver's single precision (at most {:e} in size)",
+                f32::MAX
+            ),
+        ))
+    } else {
+        Ok(())
     }
 }
 
@@ -1735,6 +1749,24 @@ mod tests {
                 "scene {text:?}: message {msg:?} does not mention {needle:?}"
             );
         }
+    }
+
+    #[test]
+    fn numbers_beyond_single_precision_are_rejected_naming_the_key() {
+        let e = Scene::from_json(
+            r#"{"bodies": [{"shape": "box", "size": [0.2, 0.2], "density": 500,
+                            "position": [1.0, 2.5], "angle": 1e39}]}"#,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("`bodies[0].angle`") && e.contains("single precision"),
+            "{e}"
+        );
+        let e = Scene::from_json(r#"{"gravity": [0, -1e300]}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`gravity[1]`"), "{e}");
     }
 
     #[test]

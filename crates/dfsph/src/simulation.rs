@@ -10,6 +10,7 @@ use web_time::Instant;
 use crate::boundary::{self, Body, BodyId, BoundaryModel, BoundarySamples};
 use crate::forces::{self, PointerForce};
 use crate::kernel::Kernel;
+use crate::memory::MemoryLimits;
 use crate::neighbors::{Grid, NeighborLists};
 use crate::packing;
 use crate::particles::{BoundaryParticles, FluidParticles, Scratch};
@@ -80,6 +81,9 @@ enum Terms {
 /// The state of one running scene.
 pub struct Simulation {
     pub(crate) scene: Scene,
+    /// The user's own memory limit, bytes (`--max-memory`, Python's `max_memory`), applied
+    /// again when an action resets the simulation to another scene.
+    pub(crate) max_memory: Option<u64>,
     pub(crate) kernel: Kernel,
     /// Lattice spacing d, m.
     pub(crate) spacing: f32,
@@ -174,9 +178,21 @@ pub struct Snapshot {
 
 impl Simulation {
     /// Build the initial state: fluid lattices, boundary particles with their volumes, and the
-    /// particle mass that puts an interior lattice particle exactly at ρ0.
+    /// particle mass that puts an interior lattice particle exactly at ρ0. A scene that needs
+    /// more memory than this process may use ([`MemoryLimits::of_this_process`]) is refused
+    /// with [`SceneError::Memory`] before anything large is allocated: every door that builds
+    /// a simulation (the command line, the viewer's Open, a recording's reset, the page's
+    /// links, Python) gets the same check and the same sentence.
     pub fn new(scene: &Scene) -> Result<Self, SceneError> {
+        Self::new_within(scene, &MemoryLimits::of_this_process(None))
+    }
+
+    /// [`Self::new`] within `limits` (e.g. with a user's `--max-memory`).
+    pub fn new_within(scene: &Scene, limits: &MemoryLimits) -> Result<Self, SceneError> {
         scene.validate()?;
+        limits
+            .check(&scene.memory_estimate())
+            .map_err(SceneError::Memory)?;
         let d = scene.spacing() as f32;
         let kernel = scene.kernel();
         let hexagonal = scene.packing == Packing::Hexagonal;
@@ -194,6 +210,7 @@ impl Simulation {
         let settings = SolverSettings::from_scene(scene);
         let mut sim = Simulation {
             scene: scene.clone(),
+            max_memory: limits.user(),
             kernel,
             spacing: d,
             volume,
