@@ -354,6 +354,7 @@ impl Simulation {
         let mut samples =
             BoundarySamples::new(crate::boundary::wall_layers(&self.kernel, self.spacing));
         samples.add_polyline(polyline, self.spacing, body);
+        samples.merge_close(crate::boundary::MERGE_DISTANCE * self.spacing);
         // A wall drawn through a rigid body would trap it: rapier pushes the body out of the
         // wall's balls (radius d/2, `RigidBodies::set_walls`) against the floor or another
         // wall, and through that (stress found a box pushed 2 cm into the floor). The wall

@@ -273,6 +273,7 @@ impl Simulation {
             sim.bodies.push(Body::default());
             samples.add_obstacle(obstacle, d, scene.hexagonal_anchor(), body);
         }
+        samples.merge_close(boundary::MERGE_DISTANCE * d);
         for spec in &scene.bodies {
             sim.add_rigid_body(spec);
         }
