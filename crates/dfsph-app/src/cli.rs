@@ -133,8 +133,10 @@ pub struct StressArgs {
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
 
-    /// Worker threads (default: one per core).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4096))]
+    /// Worker threads (default: one per core), 1 to 1,024: as many as a recording may name,
+    /// so that what is recorded can be replayed.
+    #[arg(long, value_name = "N", allow_negative_numbers = true,
+          value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub threads: Option<u32>,
 
     /// Refuse a scene whose estimated memory is above BYTES (suffixes K, M, G, T are powers
@@ -151,7 +153,7 @@ pub struct RunArgs {
     pub scene: String,
 
     /// Simulated time to run, in seconds (with --replay: by default until the recording ends).
-    #[arg(long, value_name = "SECONDS", value_parser = positive_seconds,
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true, value_parser = positive_seconds,
           required_unless_present = "replay")]
     pub until: Option<f64>,
 
@@ -170,7 +172,8 @@ pub struct RunArgs {
 
     /// Simulated time between particle snapshots, in seconds (at most 1,000,000 snapshots over
     /// the run).
-    #[arg(long, value_name = "SECONDS", default_value = "0.05", value_parser = positive_seconds)]
+    #[arg(long, value_name = "SECONDS", default_value = "0.05", allow_negative_numbers = true,
+          value_parser = positive_seconds)]
     pub every: f64,
 
     /// Snapshot formats, comma-separated: csv, vtk (.vtu for ParaView), png, and the videos
@@ -187,8 +190,10 @@ pub struct RunArgs {
     )]
     pub format: Vec<Format>,
 
-    /// Worker threads (default: one per core).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4096))]
+    /// Worker threads (default: one per core), 1 to 1,024: as many as a recording may name,
+    /// so that what is recorded can be replayed.
+    #[arg(long, value_name = "N", allow_negative_numbers = true,
+          value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub threads: Option<u32>,
 
     /// Refuse a scene whose estimated memory is above BYTES (suffixes K, M, G, T are powers
@@ -221,8 +226,10 @@ pub struct ValidateArgs {
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
 
-    /// Worker threads (default: one per core).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4096))]
+    /// Worker threads (default: one per core), 1 to 1,024: as many as a recording may name,
+    /// so that what is recorded can be replayed.
+    #[arg(long, value_name = "N", allow_negative_numbers = true,
+          value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub threads: Option<u32>,
 
     /// Refuse a scene whose estimated memory is above BYTES (suffixes K, M, G, T are powers

@@ -692,6 +692,11 @@ fn bad_arguments_exit_2_and_write_nothing() {
     assert_rejected(dir, scene, &["--every", "soon"], "--every");
     assert_rejected(dir, scene, &["--format", "csv,avi"], "avi");
     assert_rejected(dir, scene, &["--threads", "0"], "--threads");
+    // A negative number is a bad value, not an unknown argument; more threads than a
+    // recording may name are refused, so that every recording can be replayed.
+    assert_rejected(dir, scene, &["--threads", "-1"], "--threads");
+    assert_rejected(dir, scene, &["--threads", "1100"], "--threads");
+    assert_rejected(dir, scene, &["--every", "-1"], "--every");
 
     // --out naming an existing file: refused, the file untouched.
     let file = dir.join("a-file");
