@@ -34,6 +34,13 @@ pub fn install() {
     }
 }
 
+/// The flag the handlers set, for the solver to read between iterations
+/// (`Simulation::set_stop_flag`): a step whose solve runs to thousands of iterations ends
+/// within one after the first Ctrl-C.
+pub fn flag() -> &'static AtomicBool {
+    &REQUESTED
+}
+
 /// Has Ctrl-C (or SIGTERM, SIGHUP) been received?
 pub fn requested() -> bool {
     REQUESTED.load(Ordering::SeqCst)

@@ -215,8 +215,10 @@ fn run(args: RunArgs) -> Result<(), Failure> {
     )?;
     // Within --max-memory too: a recording's reset to another scene is checked against it.
     let limits = dfsph::memory::MemoryLimits::of_this_process(args.max_memory);
-    let sim = Simulation::new_within(&scene, &limits)
+    let mut sim = Simulation::new_within(&scene, &limits)
         .map_err(|e| Failure::input(format!("scene `{}`: {e}", args.scene)))?;
+    // Ctrl-C also ends a long solve within an iteration, not only the run after its step.
+    sim.set_stop_flag(interrupt::flag());
     if let Some(warning) = cut_short {
         let _ = writeln!(
             std::io::stderr(),

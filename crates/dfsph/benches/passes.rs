@@ -240,6 +240,7 @@ fn passes(c: &mut Criterion) {
                     nb,
                     boundary: &s.boundary,
                     bodies: None,
+                    stop: None,
                 };
                 let mut scratch = JacobiScratch::default();
                 g.bench_function(BenchmarkId::new(format!("{label}{suffix}"), name), |b| {

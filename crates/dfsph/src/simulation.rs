@@ -23,6 +23,7 @@ use crate::settings::SolverSettings;
 use crate::solver::{self, Neighborhood, PairCache, Walls};
 use crate::step::StepContext;
 use crate::viscosity::Viscosity;
+use std::sync::atomic::AtomicBool;
 
 pub use crate::settings::{MAX_STEP_DISPLACEMENT, PRESSURE_WAVE_STABILITY};
 
@@ -81,6 +82,8 @@ enum Terms {
 /// The state of one running scene.
 pub struct Simulation {
     pub(crate) scene: Scene,
+    /// Set from outside to end the conjugate-gradient solves early ([`Self::set_stop_flag`]).
+    pub(crate) stop_flag: Option<&'static AtomicBool>,
     /// The user's own memory limit, bytes (`--max-memory`, Python's `max_memory`), applied
     /// again when an action resets the simulation to another scene.
     pub(crate) max_memory: Option<u64>,
@@ -187,6 +190,16 @@ impl Simulation {
         Self::new_within(scene, &MemoryLimits::of_this_process(None))
     }
 
+    /// A flag that, once set (a signal handler's, for Ctrl-C), makes the conjugate-gradient
+    /// solves end at their next iteration: a deep scene's step, whose solve may run to
+    /// thousands of iterations, then ends within one and the caller can stop after it. The
+    /// step so ended is not converged; a caller that goes on stepping should clear the flag
+    /// first. (The Jacobi solve runs in lockstep across threads and is capped at its own
+    /// iteration count; it does not read the flag.)
+    pub fn set_stop_flag(&mut self, flag: &'static AtomicBool) {
+        self.stop_flag = Some(flag);
+    }
+
     /// [`Self::new`] within `limits` (e.g. with a user's `--max-memory`).
     pub fn new_within(scene: &Scene, limits: &MemoryLimits) -> Result<Self, SceneError> {
         scene.validate()?;
@@ -211,6 +224,7 @@ impl Simulation {
         let mut sim = Simulation {
             scene: scene.clone(),
             max_memory: limits.user(),
+            stop_flag: None,
             kernel,
             spacing: d,
             volume,
@@ -497,6 +511,7 @@ impl Simulation {
             nb: Neighborhood::new(&self.fluid_lists, &self.boundary_lists, &self.pair_cache),
             boundary: &self.boundary,
             bodies: self.coupled.as_ref().filter(|c| !c.is_empty()),
+            stop: self.stop_flag,
         };
         (step, &mut self.fluid, self.pressure.as_mut())
     }

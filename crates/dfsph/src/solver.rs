@@ -373,6 +373,7 @@ mod tests {
                 nb,
                 boundary: &self.boundary,
                 bodies: None,
+                stop: None,
             }
         }
     }

@@ -35,4 +35,16 @@ pub struct StepContext<'a> {
     /// bodies. `nb.wall_flux` is the walls' share of the density rate at the bodies'
     /// velocities as the solve at hand starts.
     pub bodies: Option<&'a CoupledBodies>,
+    /// Set from outside (Ctrl-C in `run`): the conjugate-gradient solve ends at its next
+    /// iteration, so that a step of a deep scene, whose solve may run to thousands of
+    /// iterations, can be stopped ([`crate::Simulation::set_stop_flag`]).
+    pub stop: Option<&'a std::sync::atomic::AtomicBool>,
+}
+
+impl StepContext<'_> {
+    /// Whether the solves are asked to stop ([`Self::stop`]).
+    pub fn stop_requested(&self) -> bool {
+        self.stop
+            .is_some_and(|s| s.load(std::sync::atomic::Ordering::Relaxed))
+    }
 }

@@ -277,6 +277,7 @@ fn density_solve(
         || iterations < limits.min_iterations)
         && iterations < limits.max_iterations
         && rz > 0.0
+        && !step.stop_requested()
     {
         scratch
             .dir_velocity
