@@ -107,9 +107,16 @@ impl BoundarySamples {
 
     /// Keep only the samples whose position passes `keep`.
     pub fn retain(&mut self, keep: impl Fn(Vec2) -> bool) {
+        let keep: Vec<bool> = self.positions.iter().map(|&p| keep(p)).collect();
+        self.keep_where(&keep);
+    }
+
+    /// Keep the samples whose entry of `keep` is true, in order; returns how many were dropped.
+    fn keep_where(&mut self, keep: &[bool]) -> usize {
+        let before = self.positions.len();
         let mut k = 0;
-        for i in 0..self.positions.len() {
-            if keep(self.positions[i]) {
+        for (i, &keep) in keep.iter().enumerate() {
+            if keep {
                 self.positions.swap(k, i);
                 self.bodies.swap(k, i);
                 self.lattice_area.swap(k, i);
@@ -119,6 +126,7 @@ impl BoundarySamples {
         self.positions.truncate(k);
         self.bodies.truncate(k);
         self.lattice_area.truncate(k);
+        before - k
     }
 
     /// Drop every sample closer than `min_distance` to one kept before it (the samples in
@@ -154,20 +162,7 @@ impl BoundarySamples {
                 !near
             })
             .collect();
-        let before = self.positions.len();
-        let mut k = 0;
-        for (i, &keep) in keep.iter().enumerate() {
-            if keep {
-                self.positions.swap(k, i);
-                self.bodies.swap(k, i);
-                self.lattice_area.swap(k, i);
-                k += 1;
-            }
-        }
-        self.positions.truncate(k);
-        self.bodies.truncate(k);
-        self.lattice_area.truncate(k);
-        before - k
+        self.keep_where(&keep)
     }
 
     /// [`Self::layers`] layers outside the interior `[lo, hi]` of a box, corners filled: the
