@@ -217,7 +217,10 @@ impl Simulation {
                 };
                 let limits = crate::memory::MemoryLimits::of_this_process(self.max_memory);
                 match Simulation::new_within(scene, &limits) {
-                    Ok(sim) => {
+                    Ok(mut sim) => {
+                        // The caller's stop flag (Ctrl-C in `run`) holds across a reset,
+                        // as the memory limit does.
+                        sim.stop_flag = self.stop_flag;
                         out.removed = self.fluid.len();
                         out.added = sim.fluid_count();
                         out.boundary_change =

@@ -37,14 +37,6 @@ impl KernelShape {
             KernelShape::WendlandC2 => 3.5,
         }
     }
-
-    /// The name a scene file uses.
-    pub fn name(self) -> &'static str {
-        match self {
-            KernelShape::CubicSpline => "cubic_spline",
-            KernelShape::WendlandC2 => "wendland_c2",
-        }
-    }
 }
 
 /// A smoothing kernel with a precomputed support radius and normalisation constants.

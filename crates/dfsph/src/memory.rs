@@ -114,7 +114,7 @@ impl Scene {
         );
         // `layers` layers (two for the cubic spline) of (w + h)·2/d each, plus the corners;
         // the hexagonal lattice's rows are 7 % denser along x.
-        let layers = self.wall_layers();
+        let layers = self.wall_layers() as f64;
         let per_layer = 0.5 * layers;
         let tank = per_layer * (4.4 * (w + h) / d + 64.0);
         let obstacles: f64 = self
@@ -145,11 +145,6 @@ impl Scene {
             })
             .sum();
         (tank + obstacles + bodies).ceil().min(u64::MAX as f64) as u64
-    }
-
-    /// Layers of every wall ([`crate::boundary::wall_layers`]), as a float.
-    fn wall_layers(&self) -> f64 {
-        crate::boundary::wall_layers(&self.kernel(), self.spacing() as f32) as f64
     }
 
     /// [`PLANNED_NEIGHBOURS`] for this scene's kernel: the support disc's area grows with

@@ -115,7 +115,7 @@ fn sample_count(obstacle: &Obstacle, d: f32, scene: &Scene) -> usize {
     if let Obstacle::Particles { positions } = obstacle {
         return positions.len();
     }
-    let mut samples = BoundarySamples::new(crate::boundary::wall_layers(&scene.kernel(), d));
+    let mut samples = BoundarySamples::new(scene.wall_layers());
     samples.add_obstacle(obstacle, d, scene.hexagonal_anchor(), 0);
     samples.positions.len()
 }

@@ -519,6 +519,11 @@ impl Scene {
         crate::kernel::Kernel::new(self.solver.kernel, self.support() as f32)
     }
 
+    /// Layers of every wall the scene's kernel needs ([`crate::boundary::wall_layers`]).
+    pub(crate) fn wall_layers(&self) -> usize {
+        crate::boundary::wall_layers(&self.kernel(), self.spacing() as f32)
+    }
+
     /// Number of lattice sites along one side of a fluid block of this length.
     pub(crate) fn lattice_count(&self, length: f64) -> usize {
         // A block that is an integer number of spacings long gets exactly that many
@@ -597,10 +602,7 @@ impl Scene {
             Packing::Square => 0.0,
         };
         for (k, obstacle) in self.obstacles.iter().enumerate() {
-            let mut walls = crate::boundary::BoundarySamples::new(crate::boundary::wall_layers(
-                &self.kernel(),
-                d,
-            ));
+            let mut walls = crate::boundary::BoundarySamples::new(self.wall_layers());
             walls.add_obstacle(obstacle, d, self.hexagonal_anchor(), 1);
             for (i, distance) in distances.iter().enumerate() {
                 let in_box = match obstacle {

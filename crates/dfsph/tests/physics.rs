@@ -694,4 +694,12 @@ fn the_stop_flag_ends_the_conjugate_gradient_solve() {
     assert_eq!(sim.step().density_iterations, 0);
     STOP.store(false, Ordering::Relaxed);
     assert!(sim.step().density_iterations >= 5);
+    // A reset keeps the flag, as it keeps the memory limit.
+    assert_eq!(
+        sim.apply(&dfsph::Action::Reset { scene: None }).rejected,
+        None
+    );
+    STOP.store(true, Ordering::Relaxed);
+    assert_eq!(sim.step().density_iterations, 0);
+    STOP.store(false, Ordering::Relaxed);
 }
