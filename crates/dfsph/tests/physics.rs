@@ -240,7 +240,7 @@ fn a_column_300_layers_deep_stays_at_rest() {
 /// that also accepted 1 % of the fastest particle's speed the pool reached 0.46 m/s.
 #[test]
 fn a_pool_300_layers_deep_stays_at_rest_while_a_drop_falls_into_it() {
-    // 13,466 particles; measured 0.0062 m/s, 7.0 iterations a step.
+    // 13,466 particles; measured 0.0062 m/s, 5.1 iterations a step.
     let s = Scene::from_json(
         r#"{"particle_radius": 0.0025, "tank": {"min": [0, 0], "max": [0.3, 2.2]},
             "packing": "hexagonal",
@@ -251,10 +251,11 @@ fn a_pool_300_layers_deep_stays_at_rest_while_a_drop_falls_into_it() {
     .unwrap();
     let limit = 0.01 * (9.81f32 * 1.5).sqrt();
     let mut sim = Simulation::new(&s).unwrap();
-    let mut fastest = 0.0f32;
+    let (mut fastest, mut most_iterations) = (0.0f32, 0);
     while sim.time() < 0.3 {
         let st = *sim.step();
         assert_eq!(st.clamped + st.non_finite, 0, "{st:?}");
+        most_iterations = most_iterations.max(st.density_iterations);
         let pool = sim
             .positions()
             .iter()
@@ -273,6 +274,12 @@ fn a_pool_300_layers_deep_stays_at_rest_while_a_drop_falls_into_it() {
     assert!(
         fastest < limit,
         "the pool moved at {fastest} m/s, limit {limit}"
+    );
+    // The deflated solve reaches all 300 layers at once: 14 iterations in its slowest step
+    // (the diagonal preconditioner alone: 164).
+    assert!(
+        most_iterations <= 40,
+        "a step took {most_iterations} iterations"
     );
 }
 

@@ -16,6 +16,12 @@
 //!
 //! * **Conjugate gradients**, preconditioned with the DFSPH factor (`a_i/Δt = 1/A_ii`), reach
 //!   the whole fluid; each iteration costs the same two neighbour passes as a Jacobi iteration.
+//! * **Deflation** by aggregates ([`super::deflation`], Saad et al. 2000): the smooth part of
+//!   the error, which the diagonal preconditioner resolves one neighbourhood per iteration, is
+//!   solved exactly on a coarse space of aggregates eight supports wide each iteration
+//!   (`SolverSettings::coarse_cell_supports`). The start is corrected so that the residual
+//!   sums to zero over every aggregate, and every search direction is made A-orthogonal to
+//!   the aggregates.
 //! * **A full warm start**: the previous step's pressure is the starting guess. In water at
 //!   rest it balances gravity's `Δt·g`, so each step starts almost converged. (The Jacobi solve
 //!   keeps half, which damps its own errors but throws away half of the support every step.)
@@ -42,6 +48,7 @@
 use crate::par::prelude::*;
 use glam::Vec2;
 
+use super::deflation::{CoarseSpace, COLOURS, MIN_CELL_SUPPORTS};
 use super::jacobi::{self, JacobiScratch};
 use super::{PressureSolver, SolveReport};
 use crate::boundary::{BoundaryModel, MirroredWalls};
@@ -140,6 +147,10 @@ struct CgScratch {
     pub rate: Vec<f32>,
     /// The walls' share of the rates after the warm start moved the rigid bodies.
     flux: Vec<f32>,
+    /// The deflated solve's coarse space and a coarse vector.
+    coarse: CoarseSpace,
+    coarse_rhs: Vec<f64>,
+    coarse_product: Vec<f32>,
 }
 
 /// `y_i += a·x_i`: a step of `a` along a search direction, for stiffnesses, velocities and
@@ -251,24 +262,68 @@ fn density_solve(
         (sum / n as f64 * 100.0, max * 100.0)
     };
     let precondition = 1.0 / dt;
-    {
+    let mut iterations = 0;
+    let deflation_cell = deflation_cell(step).filter(|_| !step.stop_requested());
+    if let Some(cell) = deflation_cell {
+        // Deflated CG (Saad et al. 2000): start from the guess whose residual sums to zero
+        // over every aggregate, κ += W E⁻¹ Wᵀ r, taken as a line search along W E⁻¹ Wᵀ r.
+        let support = step.kernel.support();
+        scratch.coarse.aggregate(
+            &fluid.position,
+            &scratch.active,
+            cell.max(MIN_CELL_SUPPORTS) * support,
+        );
+        for k in 0..COLOURS {
+            scratch.coarse.colour_indicator(k, &mut scratch.direction);
+            direction_products(step, n, scratch);
+            // A p = −Δt·B(−Bᵀ p), on the active particles.
+            let (rate, active) = (&scratch.dir_rate, &scratch.active);
+            scratch.coarse_product.clear();
+            scratch
+                .coarse_product
+                .extend(rate.iter().zip(active).map(|(&r, &a)| -dt * r * a));
+            scratch
+                .coarse
+                .set_colour_product(k, &scratch.coarse_product);
+        }
+        scratch.coarse.factorise(&fluid.position, &scratch.active);
         let (active, residual) = (&scratch.active, &scratch.residual);
+        let coarse = &mut scratch.coarse;
+        coarse.restrict(
+            |i| (active[i] * residual[i]) as f64,
+            &mut scratch.coarse_rhs,
+        );
+        coarse.solve(&mut scratch.coarse_rhs);
+        let y = &scratch.coarse_rhs;
         scratch
             .direction
             .par_iter_mut()
             .enumerate()
             .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .for_each(|(i, p)| *p = active[i] * factor[i] * precondition * residual[i]);
+            .for_each(|(i, p)| *p = coarse.prolong(y, i));
+        let pq = direction_products(step, n, scratch);
+        let rp = dot3(&scratch.direction, &scratch.residual, &scratch.active);
+        if pq > 0.0 && pq.is_finite() && rp.is_finite() {
+            take_step(
+                (rp / pq) as f32,
+                dt,
+                &mut total,
+                &mut fluid.velocity,
+                scratch,
+            );
+            iterations += 1;
+        }
     }
-    let mut rz: f64 = dot3(&scratch.direction, &scratch.residual, &scratch.active);
+    new_direction(precondition, factor, 0.0, deflation_cell.is_some(), scratch);
+    let mut rz: f64 = rz_of(precondition, factor, scratch);
     let (mut avg, mut max) = errors(&scratch.residual, &scratch.active);
-    let mut iterations = 0;
     let n_active = scratch.active.iter().filter(|&&a| a > 0.0).count().max(1) as f64;
     // α_k·(r_k·z_k) = ||κ_{k+1} − κ_k||²_A: Δt times the squared velocity change of
     // iteration k. Summed over the last DELAY iterations it bounds the A-norm error DELAY
     // iterations back from below (Hestenes–Stiefel; Strakoš & Tichý 2002).
     const DELAY: usize = 4;
     let mut energy = [f64::INFINITY; DELAY];
+    let mut k = 0;
     let velocity_error =
         |energy: &[f64; DELAY]| (energy.iter().sum::<f64>() / (dt as f64 * n_active)).sqrt();
     while (avg > limits.tolerance_pct
@@ -279,48 +334,24 @@ fn density_solve(
         && rz > 0.0
         && !step.stop_requested()
     {
-        scratch
-            .dir_velocity
-            .par_iter_mut()
-            .for_each(|v| *v = Vec2::ZERO);
-        apply_pressure(volume, &scratch.direction, &mut scratch.dir_velocity, nb);
-        density_rates_into(
-            volume,
-            &scratch.dir_velocity,
-            nb,
-            &scratch.zeros,
-            &scratch.zeros,
-            &mut scratch.unused,
-            &mut scratch.dir_rate,
-        );
-        if let Some(bodies) = step.bodies {
-            let moved = bodies.velocity_change(&scratch.direction);
-            bodies.add_flux(&mut scratch.dir_rate, 0..n, &moved, -1.0);
-        }
-        let pq = -(dt as f64) * dot3(&scratch.direction, &scratch.dir_rate, &scratch.active);
+        let pq = direction_products(step, n, scratch);
         if pq <= 0.0 || !pq.is_finite() {
             break;
         }
         let alpha = (rz / pq) as f32;
-        energy[iterations as usize % DELAY] = rz / pq * rz;
-        let (dir, dv, dr) = (&scratch.direction, &scratch.dir_velocity, &scratch.dir_rate);
-        add_scaled(&mut total, dir, alpha);
-        add_scaled(&mut fluid.velocity, dv, alpha);
-        add_scaled(&mut scratch.rate, dr, alpha);
-        add_scaled(&mut scratch.residual, dr, alpha * dt);
-        let (active, residual) = (&scratch.active, &scratch.residual);
-        let rz_new = reduce::sum_and_max_of(n, |i| {
-            (active[i] * factor[i] * precondition * residual[i]) as f64 * residual[i] as f64
-        })
-        .0;
+        energy[k % DELAY] = rz / pq * rz;
+        k += 1;
+        take_step(alpha, dt, &mut total, &mut fluid.velocity, scratch);
+        let rz_new = rz_of(precondition, factor, scratch);
         let beta = (rz_new / rz) as f32;
         rz = rz_new;
-        scratch
-            .direction
-            .par_iter_mut()
-            .enumerate()
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .for_each(|(i, p)| *p = active[i] * factor[i] * precondition * residual[i] + beta * *p);
+        new_direction(
+            precondition,
+            factor,
+            beta,
+            deflation_cell.is_some(),
+            scratch,
+        );
         (avg, max) = errors(&scratch.residual, &scratch.active);
         iterations += 1;
     }
@@ -334,4 +365,98 @@ fn density_solve(
         avg_error_pct: avg,
         max_error_pct: max,
     }
+}
+
+/// Aggregate width of the deflated solve, in kernel supports
+/// ([`SolverSettings::coarse_cell_supports`]), or `None` without deflation (0).
+///
+/// [`SolverSettings::coarse_cell_supports`]: crate::settings::SolverSettings::coarse_cell_supports
+///
+/// Not with free rigid bodies: a body couples every particle that touches it, anywhere along
+/// its outline, and the colour products that give `A W` need `A` to reach no further than two
+/// supports (with the bodies' share left out, the coarse space was wrong enough to hold a
+/// floating box's steps at the iteration cap).
+fn deflation_cell(step: &StepContext) -> Option<f32> {
+    let cell = step.settings.coarse_cell_supports;
+    (cell > 0.0 && step.bodies.is_none()).then_some(cell)
+}
+
+/// The search direction's velocity change `−Bᵀ p` and rate change `B(−Bᵀ p)` (bodies
+/// included), and `pᵀ A p = −Δt·p·B(−Bᵀ p)` over the active particles.
+fn direction_products(step: &StepContext, n: usize, scratch: &mut CgScratch) -> f64 {
+    let (volume, nb) = (step.volume, &step.nb);
+    scratch
+        .dir_velocity
+        .par_iter_mut()
+        .for_each(|v| *v = Vec2::ZERO);
+    apply_pressure(volume, &scratch.direction, &mut scratch.dir_velocity, nb);
+    density_rates_into(
+        volume,
+        &scratch.dir_velocity,
+        nb,
+        &scratch.zeros,
+        &scratch.zeros,
+        &mut scratch.unused,
+        &mut scratch.dir_rate,
+    );
+    if let Some(bodies) = step.bodies {
+        let moved = bodies.velocity_change(&scratch.direction);
+        bodies.add_flux(&mut scratch.dir_rate, 0..n, &moved, -1.0);
+    }
+    -(step.dt as f64) * dot3(&scratch.direction, &scratch.dir_rate, &scratch.active)
+}
+
+/// A step of `alpha` along the search direction: stiffness, velocities, rates and residual.
+fn take_step(
+    alpha: f32,
+    dt: f32,
+    total: &mut [f32],
+    velocity: &mut [Vec2],
+    scratch: &mut CgScratch,
+) {
+    let (dir, dv, dr) = (&scratch.direction, &scratch.dir_velocity, &scratch.dir_rate);
+    add_scaled(total, dir, alpha);
+    add_scaled(velocity, dv, alpha);
+    add_scaled(&mut scratch.rate, dr, alpha);
+    add_scaled(&mut scratch.residual, dr, alpha * dt);
+}
+
+/// `r·z` with the preconditioned residual `z = D r` (D the DFSPH factor over Δt).
+fn rz_of(precondition: f32, factor: &[f32], scratch: &CgScratch) -> f64 {
+    let (active, residual) = (&scratch.active, &scratch.residual);
+    reduce::sum_and_max_of(residual.len(), |i| {
+        (active[i] * factor[i] * precondition * residual[i]) as f64 * residual[i] as f64
+    })
+    .0
+}
+
+/// The next search direction `p = z + β p`, made A-orthogonal to the coarse space when
+/// deflating: `p −= W E⁻¹ (A W)ᵀ z`.
+fn new_direction(
+    precondition: f32,
+    factor: &[f32],
+    beta: f32,
+    deflate: bool,
+    scratch: &mut CgScratch,
+) {
+    let (active, residual) = (&scratch.active, &scratch.residual);
+    let z = |i: usize| active[i] * factor[i] * precondition * residual[i];
+    if deflate {
+        let coarse = &scratch.coarse;
+        coarse.restrict_aw(|i| z(i) as f64, &mut scratch.coarse_rhs);
+        coarse.solve(&mut scratch.coarse_rhs);
+    }
+    let y = &scratch.coarse_rhs;
+    let coarse = &scratch.coarse;
+    scratch
+        .direction
+        .par_iter_mut()
+        .enumerate()
+        .with_min_len(LIGHT_PASS_MIN_ITEMS)
+        .for_each(|(i, p)| {
+            *p = z(i) + beta * *p;
+            if deflate {
+                *p -= coarse.prolong(y, i);
+            }
+        });
 }

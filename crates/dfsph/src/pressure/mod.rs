@@ -16,6 +16,7 @@ use crate::scene::{Method, PressureSolve, Scene};
 use crate::step::StepContext;
 
 pub(crate) mod conjugate_gradient;
+mod deflation;
 pub mod jacobi;
 pub(crate) mod wcsph;
 
