@@ -403,17 +403,6 @@ impl BlockedPairs {
         self.window_start.iter().filter(|w| w.is_some()).count()
     }
 
-    /// Particle `i`'s cached `∇W_ij`, in the order of its neighbour list (then the padding's
-    /// zeros): for the passes that need each pair on its own (the density solve's coarse
-    /// space, `pressure::deflation`).
-    pub fn lane_gradients(&self, i: usize) -> impl Iterator<Item = Vec2> + '_ {
-        assert!(i < self.n, "particle index out of range");
-        let (lane, e) = (i % LANES, self.entry_range(i / LANES));
-        let xs = self.grad_x[e.clone()].iter().skip(lane).step_by(LANES);
-        let ys = self.grad_y[e].iter().skip(lane).step_by(LANES);
-        xs.zip(ys).map(|(&x, &y)| Vec2::new(x, y))
-    }
-
     /// `Σ_j s_j ∇W_ij` for the 16 particles of block `b` (x and y components per lane).
     #[inline]
     pub fn weighted_gradient_sums(&self, b: usize, s: &[f32]) -> ([f32; LANES], [f32; LANES]) {

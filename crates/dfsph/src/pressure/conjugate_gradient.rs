@@ -150,7 +150,6 @@ struct CgScratch {
     /// The deflated solve's coarse space and a coarse vector.
     coarse: CoarseSpace,
     coarse_rhs: Vec<f64>,
-    coarse_product: Vec<f32>,
 }
 
 /// `y_i += a·x_i`: a step of `a` along a search direction, for stiffnesses, velocities and
@@ -278,13 +277,8 @@ fn density_solve(
             direction_products(step, n, scratch);
             // A p = −Δt·B(−Bᵀ p), on the active particles.
             let (rate, active) = (&scratch.dir_rate, &scratch.active);
-            scratch.coarse_product.clear();
-            scratch
-                .coarse_product
-                .extend(rate.iter().zip(active).map(|(&r, &a)| -dt * r * a));
-            scratch
-                .coarse
-                .set_colour_product(k, &scratch.coarse_product);
+            let product = rate.iter().zip(active).map(|(&r, &a)| -dt * r * a);
+            scratch.coarse.set_colour_product(k, product);
         }
         scratch.coarse.factorise(&fluid.position, &scratch.active);
         let (active, residual) = (&scratch.active, &scratch.residual);
@@ -323,7 +317,6 @@ fn density_solve(
     // iterations back from below (Hestenes–Stiefel; Strakoš & Tichý 2002).
     const DELAY: usize = 4;
     let mut energy = [f64::INFINITY; DELAY];
-    let mut k = 0;
     let velocity_error =
         |energy: &[f64; DELAY]| (energy.iter().sum::<f64>() / (dt as f64 * n_active)).sqrt();
     while (avg > limits.tolerance_pct
@@ -339,8 +332,7 @@ fn density_solve(
             break;
         }
         let alpha = (rz / pq) as f32;
-        energy[k % DELAY] = rz / pq * rz;
-        k += 1;
+        energy[iterations as usize % DELAY] = rz / pq * rz;
         take_step(alpha, dt, &mut total, &mut fluid.velocity, scratch);
         let rz_new = rz_of(precondition, factor, scratch);
         let beta = (rz_new / rz) as f32;
@@ -430,8 +422,8 @@ fn rz_of(precondition: f32, factor: &[f32], scratch: &CgScratch) -> f64 {
     .0
 }
 
-/// The next search direction `p = z + β p`, made A-orthogonal to the coarse space when
-/// deflating: `p −= W E⁻¹ (A W)ᵀ z`.
+/// The next search direction `p = z + β p` (`p = z` for β = 0, whatever p held), made
+/// A-orthogonal to the coarse space when deflating: `p −= W E⁻¹ (A W)ᵀ z`.
 fn new_direction(
     precondition: f32,
     factor: &[f32],
@@ -454,7 +446,7 @@ fn new_direction(
         .enumerate()
         .with_min_len(LIGHT_PASS_MIN_ITEMS)
         .for_each(|(i, p)| {
-            *p = z(i) + beta * *p;
+            *p = if beta == 0.0 { z(i) } else { z(i) + beta * *p };
             if deflate {
                 *p -= coarse.prolong(y, i);
             }

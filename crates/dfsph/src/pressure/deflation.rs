@@ -52,6 +52,9 @@ pub(crate) struct CoarseSpace {
     aggregate_cell: Vec<glam::UVec2>,
     /// `A W_k 1` per colour k, per particle, as the products gave it.
     aw: [Vec<f32>; COLOURS],
+    /// Each particle's entry of `A W` per colour, (aggregate, value): scratch of
+    /// [`Self::factorise`].
+    colour_entries: Vec<[(u32, f32); COLOURS]>,
     /// `A W` by aggregate: entries `aw_t_start[c]..aw_t_start[c + 1]` of `aw_t_row` and
     /// `aw_t_val`, for `(A W)ᵀ z` in parallel and in a fixed order.
     aw_t_start: Vec<u32>,
@@ -90,17 +93,24 @@ impl CoarseSpace {
             self.members_start.push(0);
             return;
         }
+        // The grid is dense over the active particles' bounding box: water spread thinly over
+        // a large tank widens the cells until the grid has at most four cells per particle.
+        let mut cell = cell;
+        let cells_for = |cell: f32| ((hi - lo) / cell).floor().as_dvec2() + 1.0;
+        while cells_for(cell).element_product() > 4.0 * n as f64 + 16.0 {
+            cell *= 2.0;
+        }
         self.origin = lo;
         self.cell = cell;
         self.cells = ((hi - lo) / cell).floor().as_uvec2() + 1;
         self.cell_aggregate
             .resize((self.cells.x * self.cells.y) as usize, NONE);
-        let mut keys = Vec::with_capacity(n);
+        // Each active particle's cell key first, its aggregate once the cells are numbered.
         for i in 0..n {
             if active[i] > 0.0 {
                 let k = self.key(self.cell_of(position[i]).0);
                 self.cell_aggregate[k] = 0;
-                keys.push((k as u32, i as u32));
+                self.aggregate[i] = k as u32;
             }
         }
         // Number the cells in use in key order (along the shorter side).
@@ -118,20 +128,20 @@ impl CoarseSpace {
             }
         }
         let mut start = vec![0u32; self.count + 1];
-        for &(k, i) in &keys {
-            let a = self.cell_aggregate[k as usize];
-            self.aggregate[i as usize] = a;
-            start[a as usize + 1] += 1;
+        for a in self.aggregate.iter_mut().filter(|a| **a != NONE) {
+            *a = self.cell_aggregate[*a as usize];
+            start[*a as usize + 1] += 1;
         }
         for c in 0..self.count {
             start[c + 1] += start[c];
         }
-        self.members.resize(keys.len(), 0);
+        self.members.resize(start[self.count] as usize, 0);
         let mut next = start.clone();
-        for &(_, i) in &keys {
-            let a = self.aggregate[i as usize] as usize;
-            self.members[next[a] as usize] = i;
-            next[a] += 1;
+        for (i, &a) in self.aggregate.iter().enumerate() {
+            if a != NONE {
+                self.members[next[a as usize] as usize] = i as u32;
+                next[a as usize] += 1;
+            }
         }
         self.members_start = start;
     }
@@ -189,10 +199,10 @@ impl CoarseSpace {
         });
     }
 
-    /// Take `A W_k 1` for colour k.
-    pub fn set_colour_product(&mut self, k: usize, product: &[f32]) {
+    /// Take `A W_k 1` for colour k, one value per fluid particle.
+    pub fn set_colour_product(&mut self, k: usize, product: impl Iterator<Item = f32>) {
         self.aw[k].clear();
-        self.aw[k].extend_from_slice(product);
+        self.aw[k].extend(product);
     }
 
     /// After the four colour products: `A W` by aggregate, `E = Wᵀ A W` (symmetrised) and its
@@ -200,7 +210,8 @@ impl CoarseSpace {
     pub fn factorise(&mut self, position: &[Vec2], active: &[f32]) {
         let n = position.len();
         // Each active particle's entry per colour: (aggregate, value).
-        let mut entries: Vec<[(u32, f32); COLOURS]> = Vec::new();
+        let mut entries = std::mem::take(&mut self.colour_entries);
+        entries.clear();
         entries.resize(n, [(NONE, 0.0); COLOURS]);
         entries.par_iter_mut().enumerate().for_each(|(i, e)| {
             if active[i] > 0.0 {
@@ -261,6 +272,7 @@ impl CoarseSpace {
             }
         }
         self.aw_t_start = start;
+        self.colour_entries = entries;
         self.cholesky();
     }
 
