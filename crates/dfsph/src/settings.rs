@@ -78,14 +78,18 @@ pub struct SolverSettings {
     /// guaranteed to converge (dense clusters, e.g. fluid pulled into a point), and the growth
     /// must not reach the velocities.
     pub diverging_error_growth: f64,
-    /// The conjugate-gradient solve leaves at most this share of one step's gravity impulse
-    /// `|g|·Δt` uncorrected (root mean square over the particles it solves for;
-    /// dimensionless, 0.02). 10 % let a 1 m tank at rest drift to 0.018 m/s over 20 s, 2 %
-    /// keeps it under 0.009 m/s at about one extra iteration per step. The bound is absolute
-    /// (m/s for a given Δt), never relative to the flow: a rule that also accepted 1 % of the
-    /// fastest particle's speed let a drop falling at 3 m/s loosen the solve everywhere, and a
-    /// pool 300 layers deep 0.2 m from the drop reached 0.34 m/s before the drop landed
-    /// (0.020 m/s with this bound alone; docs/deep-columns.md).
+    /// The conjugate-gradient solve leaves at most this share of the gravity impulse
+    /// `|g|·Δt_rest` uncorrected, Δt_rest the step water at rest takes
+    /// ([`crate::step::StepContext::rest_dt`]; root mean square over the particles it solves
+    /// for; dimensionless, 0.02). On the built-in `hydrostatic` tank (r = 1 cm) over 20 s, 2 %
+    /// keeps the largest speed at 0.020 m/s (1 % of √(gH) is 0.031), 5 % lets it reach 0.042
+    /// and 10 % 0.063, for 1–8 % fewer iterations. The bound is absolute (m/s), never relative
+    /// to the flow: a rule that also accepted 1 % of the fastest particle's speed let a drop
+    /// falling at 3 m/s loosen the solve everywhere, and a pool 300 layers deep 0.2 m from the
+    /// drop reached 0.34 m/s before the drop landed (0.020 m/s with this bound alone). Nor
+    /// does it tighten with the step at hand: `|g|·Δt` fell to 10–100 µm/s in a splash's
+    /// short steps, where the solve ran to its cap on this rule alone with every density
+    /// error 100–1,000 times inside its tolerance (docs/deep-columns.md).
     pub gravity_impulse_tolerance: f32,
     /// The conjugate-gradient density solve is deflated by aggregates this many kernel
     /// supports wide (`pressure::deflation`; 8, at least 4; 0 turns deflation off). On a
@@ -93,6 +97,15 @@ pub struct SolverSettings {
     /// about the same from 4 to 8 supports (11–12, against 18 without), and wider aggregates
     /// make a smaller coarse system (docs/deep-columns.md, "Deflation").
     pub coarse_cell_supports: f32,
+    /// The conjugate-gradient density solve leaves existing compression up to this share of
+    /// the average density tolerance uncorrected (dimensionless, 0.02: 0.001 % of ρ0 at the
+    /// default 0.05 %). Removing a compression δ spread over water of depth H within one step
+    /// takes a smooth pressure of about ρ0·δ·H²/Δt², which in deep water at the short steps
+    /// it needs outgrows the hydrostatic pressure for δ of a few 10⁻⁶, the scatter of the
+    /// lattice's own densities: a column 1,000 layers deep (5 m at d = 5 mm) swung its pressure
+    /// by 3.6 % of ρ0·g·H in its first step and burst to 98 m/s within 10 ms; with this band
+    /// it stays within 0.16 % and at 0.0096 m/s (docs/deep-columns.md, "1,000 layers").
+    pub compression_dead_band: f32,
 
     // ---- The solves' safeguards ----
     /// A particle's DFSPH factor is capped at this multiple of the lattice's
@@ -192,6 +205,7 @@ impl SolverSettings {
             diverging_error_growth: 1.5,
             gravity_impulse_tolerance: 0.02,
             coarse_cell_supports: 8.0,
+            compression_dead_band: 0.02,
             max_factor_ratio: 4.0,
             max_correction_speed: 2.0,
             divergence_min_neighbors: 7,

@@ -133,6 +133,8 @@ pub struct Simulation {
     pub(crate) step_count: u64,
     /// Δt of the previous step (the divergence solve measures its error over it).
     last_dt: f32,
+    /// The step water at rest takes, as the step at hand began, s: [`StepContext::rest_dt`].
+    rest_dt: f32,
     /// Upper bound on Δt after a step had to be redone: the Δt it was accepted at, grown by
     /// [`SolverSettings::retry_limit_growth`] per step until the CFL step is the smaller again (infinite
     /// then). It spares the following steps from failing at the same length first.
@@ -251,6 +253,7 @@ impl Simulation {
             time: 0.0,
             step_count: 0,
             last_dt: scene.time_step.max as f32,
+            rest_dt: 0.0,
             retry_dt_limit: f32::INFINITY,
             retry_velocity: Vec::new(),
             retry_pressure: Vec::new(),
@@ -507,6 +510,7 @@ impl Simulation {
             spacing: self.spacing,
             dt,
             gravity: self.gravity,
+            rest_dt: self.rest_dt,
             settings: &self.settings,
             nb: Neighborhood::new(&self.fluid_lists, &self.boundary_lists, &self.pair_cache),
             boundary: &self.boundary,
@@ -554,6 +558,7 @@ impl Simulation {
         self.update_body_motion();
         self.update_neighborhoods();
         self.couple_rigid_bodies();
+        self.rest_dt = self.rest_time_step();
         // Line 14, Algorithm 2: make the velocity field divergence-free, its error measured
         // over the previous step.
         let divergence = if self.settings.divergence_solve {
@@ -736,6 +741,16 @@ impl Simulation {
         if g == 0.0 || self.fluid.is_empty() {
             return f32::INFINITY;
         }
+        self.settings.pressure_wave_stability * self.spacing / (g * self.water_extent()).sqrt()
+    }
+
+    /// The water's extent along gravity plus one spacing, D (m): the depth of the deepest
+    /// water there can be. 0 without gravity or without fluid.
+    fn water_extent(&self) -> f32 {
+        let g = self.gravity.length();
+        if g == 0.0 || self.fluid.is_empty() {
+            return 0.0;
+        }
         let down = self.gravity / g;
         let (lo, hi) = self
             .fluid
@@ -750,8 +765,22 @@ impl Simulation {
                 || (f32::INFINITY, f32::NEG_INFINITY),
                 |a, b| (a.0.min(b.0), a.1.max(b.1)),
             );
-        let extent = (hi - lo).max(0.0) + self.spacing;
-        self.settings.pressure_wave_stability * self.spacing / (g * extent).sqrt()
+        (hi - lo).max(0.0) + self.spacing
+    }
+
+    /// The step still water takes ([`StepContext::rest_dt`]): the CFL step's bounds with nothing
+    /// moving, `time_step.max`, at most `√(λ·d/|g|)`, the viscous bound and
+    /// [`Self::pressure_wave_time_step`].
+    fn rest_time_step(&self) -> f32 {
+        let ts = &self.scene.time_step;
+        let g = self.gravity.length();
+        let mut dt = (ts.max as f32)
+            .min(self.viscosity.max_time_step(self.spacing, &self.settings))
+            .min(self.pressure_wave_time_step());
+        if g > 0.0 {
+            dt = dt.min((ts.cfl as f32 * self.spacing / g).sqrt());
+        }
+        dt
     }
 
     /// CFL condition `Δt = λ·d / v_max` (v_max includes moving walls; WCSPH adds the speed of
