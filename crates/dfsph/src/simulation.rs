@@ -558,7 +558,9 @@ impl Simulation {
         self.update_body_motion();
         self.update_neighborhoods();
         self.couple_rigid_bodies();
-        self.rest_dt = self.rest_time_step();
+        // The deep-water bound on Δt, from the positions this step starts at.
+        let pressure_wave_dt = self.pressure_wave_time_step();
+        self.rest_dt = self.rest_time_step(pressure_wave_dt);
         // Line 14, Algorithm 2: make the velocity field divergence-free, its error measured
         // over the previous step.
         let divergence = if self.settings.divergence_solve {
@@ -575,7 +577,7 @@ impl Simulation {
         };
         // Line 7: Δt from the CFL condition and the stability bounds, no longer than a
         // recent retry allows.
-        let cfl_dt = self.cfl_time_step();
+        let cfl_dt = self.cfl_time_step(pressure_wave_dt);
         // Lines 6, 8 and 9, Algorithm 3: non-pressure forces, predicted velocities and the
         // density solve, redone with half the Δt while the step is unsound.
         let density =
@@ -726,7 +728,7 @@ impl Simulation {
     /// The Δt the next step starts from: the CFL step and its bounds (gravity, the
     /// viscosity's stability limit, deep water, `time_step`), before any retry shortens it.
     pub fn next_time_step(&self) -> f32 {
-        self.cfl_time_step()
+        self.cfl_time_step(self.pressure_wave_time_step())
     }
 
     /// The pressure's bound on Δt, `pressure_wave_stability·d/√(|g|·D)`, D the fluid's extent
@@ -770,13 +772,13 @@ impl Simulation {
 
     /// The step still water takes ([`StepContext::rest_dt`]): the CFL step's bounds with nothing
     /// moving, `time_step.max`, at most `√(λ·d/|g|)`, the viscous bound and
-    /// [`Self::pressure_wave_time_step`].
-    fn rest_time_step(&self) -> f32 {
+    /// [`Self::pressure_wave_time_step`] (`pressure_wave_dt`).
+    fn rest_time_step(&self, pressure_wave_dt: f32) -> f32 {
         let ts = &self.scene.time_step;
         let g = self.gravity.length();
         let mut dt = (ts.max as f32)
             .min(self.viscosity.max_time_step(self.spacing, &self.settings))
-            .min(self.pressure_wave_time_step());
+            .min(pressure_wave_dt);
         if g > 0.0 {
             dt = dt.min((ts.cfl as f32 * self.spacing / g).sqrt());
         }
@@ -787,7 +789,7 @@ impl Simulation {
     /// sound), at most `√(λ·d/|g|)`, clamped to the scene's bounds; then at most the viscous
     /// stability bound, [`Self::pressure_wave_time_step`] and [`step_displacement_bound`],
     /// which all beat `time_step.min`.
-    fn cfl_time_step(&self) -> f32 {
+    fn cfl_time_step(&self, pressure_wave_dt: f32) -> f32 {
         let ts = &self.scene.time_step;
         let fluid_max = self
             .fluid
@@ -823,7 +825,7 @@ impl Simulation {
         // bound blows up.
         let upper = (ts.max as f32)
             .min(self.viscosity.max_time_step(self.spacing, &self.settings))
-            .min(self.pressure_wave_time_step());
+            .min(pressure_wave_dt);
         // No step may carry water through a wall: the distance a particle travels in it under
         // the step's accelerations, |v|·Δt + ½|a|·Δt², stays within MAX_STEP_DISPLACEMENT·d
         // ([`step_displacement_bound`]). Like the viscous bound it beats the scene's minimum
