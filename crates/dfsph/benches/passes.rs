@@ -236,7 +236,6 @@ fn passes(c: &mut Criterion) {
                     spacing: s.spacing(),
                     dt,
                     gravity: Vec2::ZERO,
-                    rest_dt: 0.0,
                     settings: &settings,
                     nb,
                     boundary: &s.boundary,

@@ -78,18 +78,17 @@ pub struct SolverSettings {
     /// guaranteed to converge (dense clusters, e.g. fluid pulled into a point), and the growth
     /// must not reach the velocities.
     pub diverging_error_growth: f64,
-    /// The conjugate-gradient solve leaves at most this share of the gravity impulse
-    /// `|g|·Δt_rest` uncorrected, Δt_rest the step water at rest takes
-    /// ([`crate::step::StepContext::rest_dt`]; root mean square over the particles it solves
-    /// for; dimensionless, 0.02). On the built-in `hydrostatic` tank (r = 1 cm) over 20 s, 2 %
+    /// The conjugate-gradient solve leaves at most this share of one step's gravity impulse
+    /// `|g|·Δt` uncorrected (root mean square over the particles it solves for;
+    /// dimensionless, 0.02). On the built-in `hydrostatic` tank (r = 1 cm) over 20 s, 2 %
     /// keeps the largest speed at 0.020 m/s (1 % of √(gH) is 0.031), 5 % lets it reach 0.042
     /// and 10 % 0.063, for 1–8 % fewer iterations. The bound is absolute (m/s), never relative
     /// to the flow: a rule that also accepted 1 % of the fastest particle's speed let a drop
     /// falling at 3 m/s loosen the solve everywhere, and a pool 300 layers deep 0.2 m from the
-    /// drop reached 0.34 m/s before the drop landed (0.020 m/s with this bound alone). Nor
-    /// does it tighten with the step at hand: `|g|·Δt` fell to 10–100 µm/s in a splash's
-    /// short steps, where the solve ran to its cap on this rule alone with every density
-    /// error 100–1,000 times inside its tolerance (docs/deep-columns.md).
+    /// drop reached 0.34 m/s before the drop landed (0.020 m/s with this bound alone). It
+    /// tightens with the step: `|g|·Δt` falls to 10–100 µm/s in a splash's short steps, where
+    /// the solve runs to its cap on this rule alone with every density error 100–1,000 times
+    /// inside its tolerance (docs/deep-columns.md).
     pub gravity_impulse_tolerance: f32,
     /// The conjugate-gradient density solve is deflated by aggregates this many kernel
     /// supports wide (`pressure::deflation`; 8, at least 4; 0 turns deflation off). On a

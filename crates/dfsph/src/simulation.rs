@@ -133,8 +133,6 @@ pub struct Simulation {
     pub(crate) step_count: u64,
     /// Δt of the previous step (the divergence solve measures its error over it).
     last_dt: f32,
-    /// The step water at rest takes, as the step at hand began, s: [`StepContext::rest_dt`].
-    rest_dt: f32,
     /// Upper bound on Δt after a step had to be redone: the Δt it was accepted at, grown by
     /// [`SolverSettings::retry_limit_growth`] per step until the CFL step is the smaller again (infinite
     /// then). It spares the following steps from failing at the same length first.
@@ -253,7 +251,6 @@ impl Simulation {
             time: 0.0,
             step_count: 0,
             last_dt: scene.time_step.max as f32,
-            rest_dt: 0.0,
             retry_dt_limit: f32::INFINITY,
             retry_velocity: Vec::new(),
             retry_pressure: Vec::new(),
@@ -510,7 +507,6 @@ impl Simulation {
             spacing: self.spacing,
             dt,
             gravity: self.gravity,
-            rest_dt: self.rest_dt,
             settings: &self.settings,
             nb: Neighborhood::new(&self.fluid_lists, &self.boundary_lists, &self.pair_cache),
             boundary: &self.boundary,
@@ -560,7 +556,6 @@ impl Simulation {
         self.couple_rigid_bodies();
         // The deep-water bound on Δt, from the positions this step starts at.
         let pressure_wave_dt = self.pressure_wave_time_step();
-        self.rest_dt = self.rest_time_step(pressure_wave_dt);
         // Line 14, Algorithm 2: make the velocity field divergence-free, its error measured
         // over the previous step.
         let divergence = if self.settings.divergence_solve {
@@ -768,21 +763,6 @@ impl Simulation {
                 |a, b| (a.0.min(b.0), a.1.max(b.1)),
             );
         (hi - lo).max(0.0) + self.spacing
-    }
-
-    /// The step still water takes ([`StepContext::rest_dt`]): the CFL step's bounds with nothing
-    /// moving, `time_step.max`, at most `√(λ·d/|g|)`, the viscous bound and
-    /// [`Self::pressure_wave_time_step`] (`pressure_wave_dt`).
-    fn rest_time_step(&self, pressure_wave_dt: f32) -> f32 {
-        let ts = &self.scene.time_step;
-        let g = self.gravity.length();
-        let mut dt = (ts.max as f32)
-            .min(self.viscosity.max_time_step(self.spacing, &self.settings))
-            .min(pressure_wave_dt);
-        if g > 0.0 {
-            dt = dt.min((ts.cfl as f32 * self.spacing / g).sqrt());
-        }
-        dt
     }
 
     /// CFL condition `Δt = λ·d / v_max` (v_max includes moving walls; WCSPH adds the speed of

@@ -369,7 +369,6 @@ mod tests {
                 spacing: 0.5 * self.kernel.support(),
                 dt,
                 gravity: Vec2::ZERO,
-                rest_dt: 0.0,
                 settings: &self.settings,
                 nb,
                 boundary: &self.boundary,

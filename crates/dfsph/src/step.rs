@@ -25,11 +25,6 @@ pub struct StepContext<'a> {
     pub dt: f32,
     /// Gravity, m/s².
     pub gravity: Vec2,
-    /// The step water at rest takes, s: the scene's `time_step.max`, at most the deep-water
-    /// bound `pressure_wave_stability·d/√(|g|·D)`. The conjugate-gradient solve's velocity
-    /// bound is a share of the gravity impulse over it, however short the step at hand
-    /// ([`crate::settings::SolverSettings::gravity_impulse_tolerance`]).
-    pub rest_dt: f32,
     /// The stopping rules and safeguards.
     pub settings: &'a SolverSettings,
     /// Neighbour lists and the kernel gradients cached for the step.

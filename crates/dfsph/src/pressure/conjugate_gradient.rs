@@ -118,9 +118,8 @@ pub const SURFACE_DEFICIT: f32 = 0.02;
 
 /// The velocity error (m/s, root mean square) at which the solve may stop: the speed that
 /// would create the density tolerance over one step of `step.dt` at spacing d, and where
-/// g > 0 at most [`SolverSettings::gravity_impulse_tolerance`] of the gravity impulse over
-/// the step water at rest takes, `g·Δt_rest` ([`StepContext::rest_dt`]), however short the
-/// step at hand. Absolute: how fast the fastest particle moves does not loosen it (a falling
+/// g > 0 at most [`SolverSettings::gravity_impulse_tolerance`] of the gravity impulse
+/// `g·Δt`. Absolute: how fast the fastest particle moves does not loosen it (a falling
 /// drop would loosen the solve in the deep water it has not reached yet).
 ///
 /// [`SolverSettings::gravity_impulse_tolerance`]: crate::settings::SolverSettings::gravity_impulse_tolerance
@@ -128,7 +127,7 @@ pub(crate) fn velocity_tolerance(step: &StepContext) -> f32 {
     let settings = step.settings;
     let (d, g, dt) = (step.spacing, step.gravity.length(), step.dt);
     let from_density = (settings.density.tolerance_pct / 100.0) as f32 * d / dt;
-    let from_gravity = settings.gravity_impulse_tolerance * g * dt.max(step.rest_dt);
+    let from_gravity = settings.gravity_impulse_tolerance * g * dt;
     if from_gravity > 0.0 {
         from_density.min(from_gravity)
     } else {
@@ -456,48 +455,4 @@ fn new_direction(
                 *p -= coarse.prolong(y, i);
             }
         });
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::kernel::{Kernel, KernelShape};
-    use crate::neighbors::NeighborLists;
-    use crate::particles::BoundaryParticles;
-    use crate::settings::SolverSettings;
-    use crate::solver::{Neighborhood, PairCache};
-
-    /// The velocity bound of a step of `dt` in still water whose own step is 1 ms
-    /// (d = 1 cm, g = 9.81 m/s², the default scene's settings).
-    fn tolerance_at(dt: f32) -> f32 {
-        let settings = SolverSettings::from_scene(&crate::Scene::default());
-        let kernel = Kernel::new(KernelShape::CubicSpline, 0.02);
-        let (lists, cache) = (NeighborLists::default(), PairCache::default());
-        let boundary = BoundaryParticles::default();
-        velocity_tolerance(&StepContext {
-            kernel: &kernel,
-            volume: 1e-4,
-            spacing: 0.01,
-            dt,
-            gravity: Vec2::new(0.0, -9.81),
-            rest_dt: 1e-3,
-            settings: &settings,
-            nb: Neighborhood::new(&lists, &lists, &cache),
-            boundary: &boundary,
-            bodies: None,
-            stop: None,
-        })
-    }
-
-    #[test]
-    fn the_velocity_bound_does_not_tighten_with_a_shorter_step() {
-        // 2 % of g times the still water's 1 ms: 0.196 mm/s, at 1 ms and at a splash's
-        // 20 µs alike (2 % of g·Δt would be 3.9 µm/s there).
-        let at_rest = tolerance_at(1e-3);
-        assert!((at_rest - 0.02 * 9.81e-3).abs() < 1e-7, "{at_rest}");
-        assert_eq!(tolerance_at(2e-5), at_rest);
-        // A longer step than still water's (a larger `time_step.max` bound elsewhere) is held
-        // to its own impulse, at most the density tolerance's d/Δt.
-        assert!(tolerance_at(2e-3) > at_rest);
-    }
 }
