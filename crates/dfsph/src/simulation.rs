@@ -554,8 +554,6 @@ impl Simulation {
         self.update_body_motion();
         self.update_neighborhoods();
         self.couple_rigid_bodies();
-        // The deep-water bound on Δt, from the positions this step starts at.
-        let pressure_wave_dt = self.pressure_wave_time_step();
         // Line 14, Algorithm 2: make the velocity field divergence-free, its error measured
         // over the previous step.
         let divergence = if self.settings.divergence_solve {
@@ -572,7 +570,7 @@ impl Simulation {
         };
         // Line 7: Δt from the CFL condition and the stability bounds, no longer than a
         // recent retry allows.
-        let cfl_dt = self.cfl_time_step(pressure_wave_dt);
+        let cfl_dt = self.cfl_time_step();
         // Lines 6, 8 and 9, Algorithm 3: non-pressure forces, predicted velocities and the
         // density solve, redone with half the Δt while the step is unsound.
         let density =
@@ -723,7 +721,7 @@ impl Simulation {
     /// The Δt the next step starts from: the CFL step and its bounds (gravity, the
     /// viscosity's stability limit, deep water, `time_step`), before any retry shortens it.
     pub fn next_time_step(&self) -> f32 {
-        self.cfl_time_step(self.pressure_wave_time_step())
+        self.cfl_time_step()
     }
 
     /// The pressure's bound on Δt, `pressure_wave_stability·d/√(|g|·D)`, D the fluid's extent
@@ -737,16 +735,6 @@ impl Simulation {
         let g = self.gravity.length();
         if g == 0.0 || self.fluid.is_empty() {
             return f32::INFINITY;
-        }
-        self.settings.pressure_wave_stability * self.spacing / (g * self.water_extent()).sqrt()
-    }
-
-    /// The water's extent along gravity plus one spacing, D (m): the depth of the deepest
-    /// water there can be. 0 without gravity or without fluid.
-    fn water_extent(&self) -> f32 {
-        let g = self.gravity.length();
-        if g == 0.0 || self.fluid.is_empty() {
-            return 0.0;
         }
         let down = self.gravity / g;
         let (lo, hi) = self
@@ -762,14 +750,15 @@ impl Simulation {
                 || (f32::INFINITY, f32::NEG_INFINITY),
                 |a, b| (a.0.min(b.0), a.1.max(b.1)),
             );
-        (hi - lo).max(0.0) + self.spacing
+        let extent = (hi - lo).max(0.0) + self.spacing;
+        self.settings.pressure_wave_stability * self.spacing / (g * extent).sqrt()
     }
 
     /// CFL condition `Δt = λ·d / v_max` (v_max includes moving walls; WCSPH adds the speed of
     /// sound), at most `√(λ·d/|g|)`, clamped to the scene's bounds; then at most the viscous
     /// stability bound, [`Self::pressure_wave_time_step`] and [`step_displacement_bound`],
     /// which all beat `time_step.min`.
-    fn cfl_time_step(&self, pressure_wave_dt: f32) -> f32 {
+    fn cfl_time_step(&self) -> f32 {
         let ts = &self.scene.time_step;
         let fluid_max = self
             .fluid
@@ -805,7 +794,7 @@ impl Simulation {
         // bound blows up.
         let upper = (ts.max as f32)
             .min(self.viscosity.max_time_step(self.spacing, &self.settings))
-            .min(pressure_wave_dt);
+            .min(self.pressure_wave_time_step());
         // No step may carry water through a wall: the distance a particle travels in it under
         // the step's accelerations, |v|·Δt + ½|a|·Δt², stays within MAX_STEP_DISPLACEMENT·d
         // ([`step_displacement_bound`]). Like the viscous bound it beats the scene's minimum

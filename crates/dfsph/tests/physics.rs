@@ -170,6 +170,16 @@ fn the_drop_scenes_pool_is_still_when_the_drop_arrives() {
     assert_eq!(sim.total_clamped() + sim.total_non_finite(), 0);
 }
 
+/// Steps `sim` until `until` s: no step clamps, makes non-finite values or moves any particle
+/// as fast as `limit` m/s (water at rest: 1 % of sqrt(gH)).
+fn assert_stays_under(sim: &mut Simulation, until: f64, limit: f64) {
+    while sim.time() < until {
+        let st = *sim.step();
+        assert_eq!(st.clamped + st.non_finite, 0, "{st:?}");
+        assert!(st.max_speed < limit, "{st:?}");
+    }
+}
+
 /// A column `depth` m deep and 0.1 m wide at d = 5 mm between two walls, with the
 /// conjugate-gradient pressure solve on the hexagonal packing (up to `max_iterations` a step),
 /// run for 0.3 s: every step stays under 1 % of sqrt(gH), and at the end each interior
@@ -186,11 +196,7 @@ fn assert_column_stays_at_rest(depth: f64, max_iterations: u32) {
     let (rho0, g) = (1000.0f64, 9.81f64);
     let limit = 0.01 * (g * depth).sqrt();
     let mut sim = Simulation::new(&s).unwrap();
-    while sim.time() < 0.3 {
-        let st = *sim.step();
-        assert_eq!(st.clamped + st.non_finite, 0, "{st:?}");
-        assert!(st.max_speed < limit, "{st:?}");
-    }
+    assert_stays_under(&mut sim, 0.3, limit);
     let snap = sim.snapshot();
     let error = interior_pressure_error(&sim, &snap, 0.1);
     assert!(
@@ -621,11 +627,7 @@ fn a_deep_narrow_column_stays_at_rest() {
     assert!(s.solver.max_iterations >= 400, "{:?}", s.solver);
     let limit = 0.01 * (9.81f64 * 2.0).sqrt();
     let mut sim = Simulation::new(&s).unwrap();
-    while sim.time() < 0.3 {
-        let st = *sim.step();
-        assert_eq!(st.clamped + st.non_finite, 0, "{st:?}");
-        assert!(st.max_speed < limit, "{st:?}");
-    }
+    assert_stays_under(&mut sim, 0.3, limit);
     let error = interior_pressure_error(&sim, &sim.snapshot(), 0.1);
     assert!(
         error < 0.01,
@@ -651,11 +653,7 @@ fn a_column_1000_layers_deep_stays_at_rest() {
     .unwrap();
     let limit = 0.01 * (9.81f64 * 5.0).sqrt();
     let mut sim = Simulation::new(&s).unwrap();
-    while sim.time() < 0.2 {
-        let st = *sim.step();
-        assert_eq!(st.clamped + st.non_finite, 0, "{st:?}");
-        assert!(st.max_speed < limit, "{st:?}");
-    }
+    assert_stays_under(&mut sim, 0.2, limit);
 }
 
 /// A droplet thrown at a wall does not bounce back elastically: water does not. The pressure
