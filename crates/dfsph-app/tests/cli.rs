@@ -94,7 +94,7 @@ fn run_writes_every_output_file() {
     for (k, row) in rows.iter().enumerate() {
         assert_eq!(row.len(), stats[0].len());
         assert_eq!(row[0], (k + 1).to_string());
-        assert_eq!(row[3], "200");
+        assert_eq!(row[3], scene.fluid_particle_count().to_string());
     }
     let last_time: f64 = rows.last().unwrap()[1].parse().unwrap();
     assert!((0.0499..0.056).contains(&last_time), "{last_time}");
@@ -155,7 +155,7 @@ fn run_writes_every_output_file() {
         let csv = csv_rows(&particles.join(&frame[2]));
         assert_eq!(csv[0], ["x", "y", "vx", "vy", "density", "pressure"]);
         let n = csv.len() - 1;
-        assert_eq!(n, 200);
+        assert_eq!(n, scene.fluid_particle_count());
         for row in &csv[1..] {
             let v: Vec<f32> = row.iter().map(|x| x.parse().unwrap()).collect();
             assert!(v.iter().all(|x| x.is_finite()), "{row:?}");

@@ -86,6 +86,10 @@ fn assert_completed_output_readable(out: &Path, vtk: bool) -> usize {
         n = i + 1;
     }
     let particles = out.join("particles");
+    let resolved = std::fs::read_to_string(out.join("scene.json")).unwrap();
+    let fluid = dfsph::Scene::from_json(&resolved)
+        .unwrap()
+        .fluid_particle_count();
     let index = std::fs::read_to_string(particles.join("index.csv")).unwrap();
     assert!(index.starts_with("frame,time,file\n") && index.ends_with('\n'));
     let rows = index_rows(out);
@@ -98,7 +102,7 @@ fn assert_completed_output_readable(out: &Path, vtk: bool) -> usize {
         );
         let csv = std::fs::read_to_string(particles.join(cells[2])).unwrap();
         assert!(csv.ends_with('\n'), "{row}: cut short");
-        assert_eq!(csv.lines().count(), 201, "{row}");
+        assert_eq!(csv.lines().count(), fluid + 1, "{row}");
         if vtk {
             let vtu = std::fs::read_to_string(particles.join(cells[2].replace(".csv", ".vtu")));
             assert!(vtu.unwrap().trim_end().ends_with("</VTKFile>"), "{row}");

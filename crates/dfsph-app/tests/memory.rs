@@ -13,6 +13,13 @@ use common::{dfsph2d, text, write_scene, BIN};
 /// A dam break at r = 5 mm: 20,000 fluid particles, about 43 MiB by the estimate.
 const FINE: &str = r#"{"particle_radius": 0.005}"#;
 
+/// The fluid particles of the scene `json` (about 20,000 for [`FINE`]).
+fn fluid_count(json: &str) -> usize {
+    dfsph::Scene::from_json(json)
+        .unwrap()
+        .fluid_particle_count()
+}
+
 /// One `error:` line naming the need and the limit, exit 2, no panic, nothing on stdout.
 fn assert_refused(out: &std::process::Output, needle: &str) -> String {
     let stderr = text(&out.stderr);
@@ -55,7 +62,7 @@ fn run_refuses_a_scene_above_max_memory_and_writes_nothing() {
         stderr.starts_with(&format!(
             "error: scene `{}`: the scene needs about ",
             scene.display()
-        )) && stderr.contains(" of memory (20000 fluid and ")
+        )) && stderr.contains(&format!(" of memory ({} fluid and ", fluid_count(FINE)))
             && stderr.ends_with("; use fewer or larger particles\n"),
         "{stderr}"
     );
@@ -73,7 +80,7 @@ fn stress_view_and_validate_check_max_memory_too() {
     let scene = scene.to_str().unwrap();
     // stress plans for its pour budget: the scene's fluid and as much again.
     let out = dfsph2d(&["stress", scene, "--steps", "1", "--max-memory", "40M"]);
-    assert_refused(&out, "(40000 fluid and ");
+    assert_refused(&out, &format!("({} fluid and ", 2 * fluid_count(FINE)));
     // view refuses before opening a window (these tests have no display).
     let out = dfsph2d(&["view", scene, "--max-memory", "1M"]);
     assert_refused(&out, "more than --max-memory (1.00 MiB)");
@@ -129,6 +136,10 @@ fn an_address_space_limit_below_the_estimate_is_one_error_line() {
         &out,
         "more than what the address-space limit (ulimit -v) of 256 MiB leaves (",
     );
-    assert!(stderr.contains("(2000000 fluid and "), "{stderr}");
+    let needle = format!(
+        "({} fluid and ",
+        fluid_count(r#"{"particle_radius": 0.0005, "max_particles": 5000000}"#)
+    );
+    assert!(stderr.contains(&needle), "{stderr}");
     assert!(!out_dir.exists(), "output written despite the refusal");
 }

@@ -131,7 +131,10 @@ pub enum Obstacle {
     Particles { positions: Vec<Point> },
 }
 
-/// The lattice of the initial fluid particles and of the tank's walls.
+/// The lattice of the initial fluid particles and of the tank's walls. The default is the
+/// hexagonal one, for every scene: it is the lattice that water under pressure rests on (the
+/// square one is not stable under deep pressure: a 300-layer column on it sloshed at 1.1 m/s
+/// with the conjugate-gradient solve).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Packing {
@@ -152,7 +155,8 @@ pub enum PressureSolve {
     /// Preconditioned conjugate gradients with the full previous pressure as the starting
     /// guess, a stopping rule that sees momentum, walls that mirror the fluid's pressure with
     /// its hydrostatic gradient, and a hydrostatic initial pressure
-    /// (`pressure::conjugate_gradient`). Water at rest stays at rest.
+    /// (`pressure::conjugate_gradient`), deflated by a coarse space so that its reach does
+    /// not grow with the depth of the water. Water at rest stays at rest. The default.
     ConjugateGradient,
 }
 
@@ -241,7 +245,7 @@ impl Default for Scene {
                 velocity: [0.0, 0.0],
             }],
             particles: ParticleList::default(),
-            packing: Packing::Square,
+            packing: Packing::Hexagonal,
             obstacles: Vec::new(),
             bodies: Vec::new(),
             solver: SolverParams::default(),
@@ -257,7 +261,7 @@ impl Default for SolverParams {
     fn default() -> Self {
         Self {
             method: Method::Dfsph,
-            pressure_solve: PressureSolve::Jacobi,
+            pressure_solve: PressureSolve::ConjugateGradient,
             kernel: crate::kernel::KernelShape::CubicSpline,
             density_tolerance_pct: 0.05,
             divergence_tolerance_pct: 0.1,
@@ -385,8 +389,7 @@ pub(crate) fn point(key: &str, p: Point) -> Result<(), SceneError> {
 
 impl Scene {
     /// Parse and validate a scene from JSON text. Keys that are absent take their defaults,
-    /// which for water at rest are the settings that hold it at rest
-    /// ([`Self::is_water_at_rest`], `apply_rest_defaults`).
+    /// the same for every scene whatever its shape (`Scene::default`, `SolverParams::default`).
     pub fn from_json(text: &str) -> Result<Self, SceneError> {
         if text.trim().is_empty() {
             return Err(SceneError::Parse(
@@ -409,7 +412,7 @@ impl Scene {
             )));
         }
         let de = &mut serde_json::Deserializer::from_str(text);
-        let mut scene: Scene = serde_path_to_error::deserialize(&mut *de).map_err(|e| {
+        let scene: Scene = serde_path_to_error::deserialize(&mut *de).map_err(|e| {
             let path = e.path().to_string();
             let inner = e.into_inner();
             if path.is_empty() || path == "." || path == "?" {
@@ -421,66 +424,8 @@ impl Scene {
         de.end().map_err(|e| {
             SceneError::Parse(format!("unexpected text after the scene object: {e}"))
         })?;
-        // The text parsed as a scene object, so it parses as a JSON value.
-        let keys: serde_json::Value = serde_json::from_str(text).unwrap_or_default();
-        scene.apply_rest_defaults(&keys);
         scene.validate()?;
         Ok(scene)
-    }
-
-    /// Whether the scene is water at rest: every fluid block spans the tank from wall to wall
-    /// and starts still, under gravity straight down the y axis. Such water has nowhere to
-    /// flow until it is disturbed (shaken, pushed, poured into), and the exact answer is that
-    /// nothing moves.
-    pub fn is_water_at_rest(&self) -> bool {
-        let tolerance = self.tank.edge_tolerance() + 0.5 * self.spacing();
-        // Listed particles may lie anywhere: nothing says they are at rest.
-        self.particles.is_empty()
-            && self.gravity[0] == 0.0
-            && self.gravity[1] < 0.0
-            && self.fluid.iter().all(|b| {
-                b.velocity == [0.0, 0.0]
-                    && b.min[0] <= self.tank.min[0] + tolerance
-                    && b.max[0] >= self.tank.max[0] - tolerance
-            })
-    }
-
-    /// A scene file's defaults for water at rest ([`Self::is_water_at_rest`]), for the keys
-    /// the file leaves out (`keys` is the file's JSON): the hexagonal packing, the
-    /// conjugate-gradient pressure solve, and with it at least one iteration per layer of
-    /// water. The general defaults (the square lattice, the Jacobi solve) let a column
-    /// hundreds of layers deep fall into its bottom rows and slosh at 1–3.5 m/s; these hold it
-    /// still at any depth measured (400 layers). They are not the general defaults because a
-    /// collapsing column on the hexagonal lattice drains too slowly (docs/deep-columns.md).
-    fn apply_rest_defaults(&mut self, keys: &serde_json::Value) {
-        if !self.is_water_at_rest() || self.solver.method != Method::Dfsph {
-            return;
-        }
-        let solver = keys.get("solver");
-        let absent =
-            |v: Option<&serde_json::Value>, key: &str| v.and_then(|v| v.get(key)).is_none();
-        if keys.get("packing").is_none() {
-            self.packing = Packing::Hexagonal;
-        }
-        if absent(solver, "pressure_solve") {
-            self.solver.pressure_solve = PressureSolve::ConjugateGradient;
-        }
-        if self.solver.pressure_solve == PressureSolve::ConjugateGradient
-            && absent(solver, "max_iterations")
-        {
-            // The smoothest pressure mode of a deep column spans all its layers: 100
-            // iterations held 200 layers but not 300 (docs/deep-columns.md).
-            let depth = self
-                .fluid
-                .iter()
-                .map(|b| b.max[1] - self.tank.min[1])
-                .fold(0.0, f64::max);
-            let layers = (depth / (crate::packing::ROW_DISTANCE * self.spacing())).ceil();
-            if layers.is_finite() {
-                self.solver.max_iterations =
-                    self.solver.max_iterations.max(layers.min(10_000.0) as u32);
-            }
-        }
     }
 
     /// The resolved scene as pretty JSON: every key present, defaults filled in.
@@ -535,27 +480,32 @@ impl Scene {
     /// `particles`: the number of fluid particles without obstacles, an upper bound with them
     /// (block sites an obstacle covers stay empty; see `Simulation::new`).
     pub fn fluid_particle_count(&self) -> usize {
-        self.particles.len()
-            + self
+        let blocks: usize = match self.packing {
+            Packing::Square => self
                 .fluid
                 .iter()
-                .map(|b| match self.packing {
-                    Packing::Square => {
-                        self.lattice_count(b.max[0] - b.min[0])
-                            * self.lattice_count(b.max[1] - b.min[1])
-                    }
-                    Packing::Hexagonal => crate::packing::rows(
-                        self.tank.min,
-                        b.min,
-                        b.max,
-                        self.spacing(),
-                        self.tank.edge_tolerance(),
-                    )
-                    .iter()
-                    .map(|r| r.count)
-                    .sum(),
+                .map(|b| {
+                    self.lattice_count(b.max[0] - b.min[0])
+                        * self.lattice_count(b.max[1] - b.min[1])
                 })
-                .sum::<usize>()
+                .sum(),
+            // Each site once, where blocks share an edge or overlap.
+            Packing::Hexagonal => crate::packing::rows_of_boxes(
+                self.tank.min,
+                &self.fluid_boxes(),
+                self.spacing(),
+                self.tank.edge_tolerance(),
+            )
+            .iter()
+            .map(|(_, r)| r.count)
+            .sum(),
+        };
+        self.particles.len() + blocks
+    }
+
+    /// The fluid blocks' corners, `(min, max)`, m.
+    pub fn fluid_boxes(&self) -> Vec<(Point, Point)> {
+        self.fluid.iter().map(|b| (b.min, b.max)).collect()
     }
 
     /// Bodies may touch each other and the obstacles but not overlap them: a quarter spacing
@@ -1236,12 +1186,26 @@ impl BuiltinScene {
     }
 }
 
+/// `scene` on the square lattice with the Jacobi solve (the paper's DFSPH), in place of the
+/// defaults (the hexagonal lattice, conjugate gradients). The built-in collapsing columns (the
+/// dam breaks, `obstacle`, `floating`) and the validation's dam breaks name it: on the defaults
+/// the 5k dam break drains too slowly (its residual height at the back wall 58 % off
+/// Martin & Moyce's Table 6 at τ = 5.25, against 13 % here) and takes 4.4 times as long
+/// (26.5 density iterations a step against 3.0; docs/deep-columns.md, "One set of
+/// defaults"). Deep water at rest is what it cannot hold: a pool 300 layers deep sloshes at
+/// 1.1 m/s on it.
+pub fn square_lattice_jacobi(mut scene: Scene) -> Scene {
+    scene.packing = Packing::Square;
+    scene.solver.pressure_solve = PressureSolve::Jacobi;
+    scene
+}
+
 /// The built-in scenes, in the order the viewer's number keys select them.
 pub const BUILTIN_SCENES: &[BuiltinScene] = &[
     BuiltinScene {
         name: "dam-break",
         description: "1 m x 2 m water column collapsing in a 4 m x 3 m tank (5,000 particles)",
-        build: Scene::default,
+        build: || square_lattice_jacobi(Scene::default()),
     },
     BuiltinScene {
         name: "hydrostatic",
@@ -1256,11 +1220,6 @@ pub const BUILTIN_SCENES: &[BuiltinScene] = &[
                 max: [2.0, 1.0],
                 velocity: [0.0, 0.0],
             }],
-            packing: Packing::Hexagonal,
-            solver: SolverParams {
-                pressure_solve: PressureSolve::ConjugateGradient,
-                ..SolverParams::default()
-            },
             ..Scene::default()
         },
     },
@@ -1280,7 +1239,7 @@ pub const BUILTIN_SCENES: &[BuiltinScene] = &[
                     velocity: [0.0, 0.0],
                 },
             ],
-            ..Scene::default()
+            ..square_lattice_jacobi(Scene::default())
         },
     },
     BuiltinScene {
@@ -1303,14 +1262,9 @@ pub const BUILTIN_SCENES: &[BuiltinScene] = &[
                     velocity: [0.0, -1.0],
                 },
             ],
-            // The settings for water at rest: on the square lattice with the Jacobi solve the
-            // pool sloshed at 0.5 m/s before the drop reached it; with these it stays under
-            // 0.001 m/s, and the splash is the same (15 m/s at its tip against 14.7).
-            packing: Packing::Hexagonal,
-            solver: SolverParams {
-                pressure_solve: PressureSolve::ConjugateGradient,
-                ..SolverParams::default()
-            },
+            // The defaults: on the square lattice with the Jacobi solve the pool sloshed at
+            // 0.5 m/s before the drop reached it; on these it stays under 0.001 m/s, and the
+            // splash is the same (15 m/s at its tip against 14.7).
             ..Scene::default()
         },
     },
@@ -1327,7 +1281,7 @@ pub const BUILTIN_SCENES: &[BuiltinScene] = &[
                     points: vec![[3.0, 0.0], [4.0, 0.8]],
                 },
             ],
-            ..Scene::default()
+            ..square_lattice_jacobi(Scene::default())
         },
     },
     BuiltinScene {
@@ -1358,7 +1312,7 @@ pub const BUILTIN_SCENES: &[BuiltinScene] = &[
                 BodySpec::new_box([0.3, 0.3], 700.0, [3.0, 0.19]),
                 BodySpec::new_circle(0.15, 2000.0, [3.6, 0.155]),
             ],
-            ..Scene::default()
+            ..square_lattice_jacobi(Scene::default())
         },
     },
 ];
@@ -1448,16 +1402,15 @@ mod tests {
 
     #[test]
     fn packing_and_pressure_solve_are_read_and_bad_values_named() {
-        let s = Scene::from_json(
-            r#"{"packing": "hexagonal", "solver": {"pressure_solve": "conjugate_gradient"}}"#,
-        )
-        .unwrap();
-        assert_eq!(s.packing, Packing::Hexagonal);
-        assert_eq!(s.solver.pressure_solve, PressureSolve::ConjugateGradient);
+        let s =
+            Scene::from_json(r#"{"packing": "square", "solver": {"pressure_solve": "jacobi"}}"#)
+                .unwrap();
+        assert_eq!(s.packing, Packing::Square);
+        assert_eq!(s.solver.pressure_solve, PressureSolve::Jacobi);
         let d = Scene::default();
         assert_eq!(
             (d.packing, d.solver.pressure_solve),
-            (Packing::Square, PressureSolve::Jacobi)
+            (Packing::Hexagonal, PressureSolve::ConjugateGradient)
         );
         let e = Scene::from_json(r#"{"packing": "triangular"}"#)
             .unwrap_err()
@@ -1473,61 +1426,60 @@ mod tests {
     }
 
     #[test]
-    fn water_at_rest_gets_the_rest_defaults_for_the_keys_a_file_leaves_out() {
+    fn every_scene_gets_the_same_defaults_whatever_its_shape() {
+        // Water at rest, a column short of the far wall, a moving block, a block above a
+        // wall-to-wall pool, gravity along x, particles listed one by one: the keys a file
+        // leaves out take one set of values, never a guess from the scene's shape.
         let tank = r#""tank": {"min": [0, 0], "max": [0.25, 2]}, "particle_radius": 0.0025"#;
-        let column = |extra: &str| {
-            Scene::from_json(&format!(
-                r#"{{{tank}, "fluid": [{{"min": [0, 0], "max": [0.25, 1.5]}}] {extra}}}"#
-            ))
-            .unwrap()
-        };
-        // 1.5 m at d = 5 mm: 323 hexagonal rows, an iteration each.
-        let s = column("");
-        assert!(s.is_water_at_rest());
-        assert_eq!(
-            (s.packing, s.solver.pressure_solve, s.solver.max_iterations),
-            (Packing::Hexagonal, PressureSolve::ConjugateGradient, 323)
-        );
-        // What the file says is kept.
-        let s = column(r#", "packing": "square", "solver": {"max_iterations": 50}"#);
-        assert_eq!(
-            (s.packing, s.solver.pressure_solve, s.solver.max_iterations),
-            (Packing::Square, PressureSolve::ConjugateGradient, 50)
-        );
-        let s = column(r#", "solver": {"pressure_solve": "jacobi"}"#);
-        assert_eq!(
-            (s.packing, s.solver.pressure_solve, s.solver.max_iterations),
-            (Packing::Hexagonal, PressureSolve::Jacobi, 100)
-        );
-        let s = column(r#", "solver": {"method": "wcsph"}"#);
-        assert_eq!(
-            (s.packing, s.solver.pressure_solve),
-            (Packing::Square, PressureSolve::Jacobi)
-        );
-        // A shallow layer keeps the cap of 100.
-        let s = Scene::from_json(&format!(
-            r#"{{{tank}, "fluid": [{{"min": [0, 0], "max": [0.25, 0.1]}}]}}"#
-        ))
-        .unwrap();
-        assert_eq!(s.solver.max_iterations, 100);
-        // Water that can flow keeps the general defaults: a column short of the far wall, a
-        // moving block, a block above a wall-to-wall pool, gravity along x.
+        let defaults = Scene::default();
         for fluid in [
+            r#""fluid": [{"min": [0, 0], "max": [0.25, 1.5]}]"#,
             r#""fluid": [{"min": [0, 0], "max": [0.2, 1.5]}]"#,
             r#""fluid": [{"min": [0, 0], "max": [0.25, 1.5], "velocity": [0, -1]}]"#,
             r#""fluid": [{"min": [0, 0], "max": [0.25, 0.5]}, {"min": [0, 1], "max": [0.1, 1.2]}]"#,
             r#""fluid": [{"min": [0, 0], "max": [0.25, 1.5]}], "gravity": [9.81, 0]"#,
+            r#""fluid": [], "particles": {"positions": [[0.01, 0.01], [0.03, 0.01]]}"#,
         ] {
             let s = Scene::from_json(&format!("{{{tank}, {fluid}}}")).unwrap();
-            assert!(!s.is_water_at_rest(), "{fluid}");
             assert_eq!(
-                (s.packing, s.solver.pressure_solve, s.solver.max_iterations),
-                (Packing::Square, PressureSolve::Jacobi, 100),
+                (s.packing, &s.solver, &s.time_step),
+                (Packing::Hexagonal, &defaults.solver, &defaults.time_step),
                 "{fluid}"
             );
         }
-        assert!(!Scene::default().is_water_at_rest());
-        assert!(builtin("hydrostatic").unwrap().is_water_at_rest());
+        assert_eq!(
+            (
+                defaults.solver.pressure_solve,
+                defaults.solver.max_iterations
+            ),
+            (PressureSolve::ConjugateGradient, 100)
+        );
+        // What the file says is kept.
+        let s = Scene::from_json(&format!(
+            r#"{{{tank}, "fluid": [{{"min": [0, 0], "max": [0.25, 1.5]}}], "packing": "square",
+                "solver": {{"pressure_solve": "jacobi", "max_iterations": 50}}}}"#
+        ))
+        .unwrap();
+        assert_eq!(
+            (s.packing, s.solver.pressure_solve, s.solver.max_iterations),
+            (Packing::Square, PressureSolve::Jacobi, 50)
+        );
+        // The built-in collapsing columns name the square lattice and the Jacobi solve.
+        for name in ["dam-break", "double-dam-break", "obstacle", "floating"] {
+            let s = builtin(name).unwrap();
+            assert_eq!(
+                (s.packing, s.solver.pressure_solve),
+                (Packing::Square, PressureSolve::Jacobi),
+                "{name}"
+            );
+        }
+        for name in ["hydrostatic", "drop"] {
+            let s = builtin(name).unwrap();
+            assert_eq!(
+                (s.packing, &s.solver),
+                (Packing::Hexagonal, &defaults.solver)
+            );
+        }
     }
 
     #[test]
@@ -1553,7 +1505,6 @@ mod tests {
         let s =
             Scene::from_json(&scene("", r#"{"positions": [[0.01, 0.01], [0.03, 0.01]]}"#)).unwrap();
         assert_eq!(s.fluid_particle_count(), 2);
-        assert!(!s.is_water_at_rest());
         Scene::from_json(&scene(
             r#"{"min": [1, 0], "max": [2, 0.5]}"#,
             r#"{"positions": [[0.01, 0.01], [1.995, 0.6]], "velocities": [[0, 0], [1, -2]]}"#,
@@ -1785,7 +1736,7 @@ mod tests {
 
     #[test]
     fn lattice_count_is_exact_for_whole_multiples() {
-        let s = Scene::default();
+        let s = builtin("dam-break").unwrap();
         assert_eq!(s.lattice_count(1.0), 50);
         assert_eq!(s.lattice_count(2.0), 100);
         assert_eq!(s.fluid_particle_count(), 5000);

@@ -310,16 +310,19 @@ impl Simulation {
                 || bodies.as_ref().is_some_and(|r| r.covers(p, d))
         };
         sim.fluid.reserve(scene.fluid_particle_count());
-        for block in scene.fluid.iter().filter(|_| hexagonal) {
-            let v = to_vec2(block.velocity);
-            let tolerance = scene.tank.edge_tolerance();
-            for p in packing::sites(
+        let hexagonal_rows = if hexagonal {
+            packing::rows_of_boxes(
                 scene.tank.min,
-                block.min,
-                block.max,
+                &scene.fluid_boxes(),
                 scene.spacing(),
-                tolerance,
-            ) {
+                scene.tank.edge_tolerance(),
+            )
+        } else {
+            Vec::new()
+        };
+        for (block, row) in &hexagonal_rows {
+            let v = to_vec2(scene.fluid[*block].velocity);
+            for p in packing::row_sites(row, scene.spacing()) {
                 if !covered(p) {
                     let id = sim.next_id;
                     sim.next_id += 1;

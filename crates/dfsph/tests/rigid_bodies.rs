@@ -530,7 +530,7 @@ fn bodies_land_on_obstacles_and_drawn_walls() {
     // The box rests on the block's top, the circle on the wall: the wall's particle rows lie
     // d/2 either side of its line, and water would stand d/2 beyond them. The block's top is
     // d/2 above its top row of particles: 0.4 m on the square grid, within half a row of it
-    // on the hexagonal lattice this scene of water at rest gets.
+    // on the hexagonal lattice of the defaults.
     let block_top = sim
         .boundary_positions()
         .iter()

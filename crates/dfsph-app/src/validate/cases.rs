@@ -399,6 +399,8 @@ fn dam_radii(s: Settings) -> [f64; 3] {
     }
 }
 
+/// The validation's dam break: the built-in dam break's discretisation
+/// ([`scene::square_lattice_jacobi`]) at radius `r`.
 fn dam_scene(r: f64, method: Method) -> Scene {
     let mut s = Scene {
         name: "validation-dam-break".into(),
@@ -424,7 +426,7 @@ fn dam_scene(r: f64, method: Method) -> Scene {
             name: "h_wall".into(),
             x: 2.0 * r,
         }],
-        ..Scene::default()
+        ..scene::square_lattice_jacobi(Scene::default())
     };
     s.solver.method = method;
     s
@@ -939,7 +941,8 @@ fn lobovsky_run(s: Settings) -> (f64, f64) {
     }
 }
 
-/// Lobovsky et al.'s tank at radius `r` with the case's gauges and sensors.
+/// Lobovsky et al.'s tank at radius `r` with the case's gauges and sensors, on the built-in
+/// dam break's discretisation ([`scene::square_lattice_jacobi`]).
 fn lobovsky_scene(r: f64) -> Scene {
     let mut probes: Vec<Probe> = GAUGES
         .iter()
@@ -966,7 +969,7 @@ fn lobovsky_scene(r: f64) -> Scene {
             velocity: [0.0, 0.0],
         }],
         probes,
-        ..Scene::default()
+        ..scene::square_lattice_jacobi(Scene::default())
     }
 }
 

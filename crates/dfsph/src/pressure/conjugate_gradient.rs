@@ -111,6 +111,14 @@ impl PressureSolver for ConjugateGradient {
     }
 }
 
+/// The share of the starting `rᵀz` (the preconditioned residual's square norm) at which the
+/// solve stops whatever its other rules say (1e-12: the residual 10⁻⁶ of where it started,
+/// near single precision's resolution of the sums it is made of). Past it `pᵀAp` is
+/// round-off too, and the step `rᵀz/pᵀAp` is noise over noise: a droplet of three particles
+/// pressed into a corner, solved exactly within three iterations, went on (the velocity rule
+/// wants four) with steps of 10¹¹ and left at 1,000 m/s.
+pub const ROUND_OFF: f64 = 1.0e-12;
+
 /// A particle this far (relative) below ρ0 is at the free surface. The row below a free
 /// surface has its full neighbourhood (the support is two spacings); the surface row misses
 /// about a fifth of its density.
@@ -314,6 +322,9 @@ fn density_solve(
     }
     new_direction(precondition, factor, 0.0, deflation_cell.is_some(), scratch);
     let mut rz: f64 = rz_of(precondition, factor, scratch);
+    // Below this the residual is single precision's round-off of the one the iteration
+    // started from: a further step divides noise by noise.
+    let round_off = rz * ROUND_OFF;
     let (mut avg, mut max) = errors(&scratch.residual, &scratch.active);
     let n_active = scratch.active.iter().filter(|&&a| a > 0.0).count().max(1) as f64;
     // α_k·(r_k·z_k) = ||κ_{k+1} − κ_k||²_A: Δt times the squared velocity change of
@@ -328,7 +339,7 @@ fn density_solve(
         || velocity_error(&energy) > velocity_tolerance as f64
         || iterations < limits.min_iterations)
         && iterations < limits.max_iterations
-        && rz > 0.0
+        && rz > round_off
         && !step.stop_requested()
     {
         let pq = direction_products(step, n, scratch);
