@@ -77,6 +77,10 @@ fn stops_cleanly_on(signal: &str) {
         "temporary files left: {files:?}"
     );
     let particles = out_dir.join("particles");
+    let resolved = std::fs::read_to_string(out_dir.join("scene.json")).unwrap();
+    let fluid = dfsph::Scene::from_json(&resolved)
+        .unwrap()
+        .fluid_particle_count();
     let index = std::fs::read_to_string(particles.join("index.csv")).unwrap();
     let listed: Vec<String> = index
         .lines()
@@ -92,7 +96,7 @@ fn stops_cleanly_on(signal: &str) {
         let text = std::fs::read_to_string(particles.join(name)).unwrap();
         assert!(text.ends_with('\n'), "{name} is cut short");
         let rows: Vec<&str> = text.lines().collect();
-        assert_eq!(rows.len(), 201, "{name}");
+        assert_eq!(rows.len(), fluid + 1, "{name}");
         assert!(rows.iter().all(|r| r.split(',').count() == 6), "{name}");
         let vtu = std::fs::read_to_string(particles.join(name.replace(".csv", ".vtu"))).unwrap();
         assert!(
