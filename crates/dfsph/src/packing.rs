@@ -65,8 +65,8 @@ pub fn rows(anchor: [f64; 2], lo: [f64; 2], hi: [f64; 2], d: f64, tolerance: f64
 /// The sites of [`rows`], as positions.
 pub fn sites(anchor: [f64; 2], lo: [f64; 2], hi: [f64; 2], d: f64, tolerance: f64) -> Vec<Vec2> {
     rows(anchor, lo, hi, d, tolerance)
-        .iter()
-        .flat_map(|r| row_sites(r, d).collect::<Vec<_>>())
+        .into_iter()
+        .flat_map(|r| row_sites(r, d))
         .collect()
 }
 
@@ -127,7 +127,7 @@ fn sub_row(row: &Row, first: i64, last: i64, s: f64) -> Row {
 }
 
 /// The positions of a row's sites.
-pub fn row_sites(row: &Row, d: f64) -> impl Iterator<Item = Vec2> + '_ {
+pub fn row_sites(row: Row, d: f64) -> impl Iterator<Item = Vec2> {
     let s = ROW_SPACING * d;
     (0..row.count).map(move |i| Vec2::new((row.x0 + i as f64 * s) as f32, row.y as f32))
 }
@@ -246,8 +246,8 @@ mod tests {
         let d = 0.02;
         let all = |boxes: &[([f64; 2], [f64; 2])]| -> Vec<Vec2> {
             rows_of_boxes([0.0, 0.0], boxes, d, 1e-9)
-                .iter()
-                .flat_map(|(_, r)| row_sites(r, d).collect::<Vec<_>>())
+                .into_iter()
+                .flat_map(|(_, r)| row_sites(r, d))
                 .collect()
         };
         let one = all(&[([0.0, 0.0], [1.0, 0.5])]);

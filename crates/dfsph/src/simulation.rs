@@ -320,8 +320,8 @@ impl Simulation {
         } else {
             Vec::new()
         };
-        for (block, row) in &hexagonal_rows {
-            let v = to_vec2(scene.fluid[*block].velocity);
+        for &(block, row) in &hexagonal_rows {
+            let v = to_vec2(scene.fluid[block].velocity);
             for p in packing::row_sites(row, scene.spacing()) {
                 if !covered(p) {
                     let id = sim.next_id;

@@ -180,18 +180,24 @@ fn assert_stays_under(sim: &mut Simulation, until: f64, limit: f64) {
     }
 }
 
-/// A column `depth` m deep and 0.1 m wide at d = 5 mm between two walls, on the default
+/// Water `width` m wide and `depth` m deep at d = 5 mm from wall to wall, at rest, in a tank
+/// 1.25 times as high, from a scene file that names no solver settings.
+fn column(width: f64, depth: f64) -> Scene {
+    Scene::from_json(&format!(
+        r#"{{"particle_radius": 0.0025, "tank": {{"min": [0, 0], "max": [{width}, {}]}},
+            "fluid": [{{"min": [0, 0], "max": [{width}, {depth}]}}]}}"#,
+        1.25 * depth
+    ))
+    .unwrap()
+}
+
+/// A column `depth` m deep and 0.1 m wide at d = 5 mm between two walls ([`column`]), on the default
 /// settings (the hexagonal packing, the deflated conjugate-gradient solve, at most 100
 /// iterations a step), run for 0.3 s: every step stays under 1 % of sqrt(gH), and at the end each interior
 /// particle's output pressure is within 1 % of ρ0·g·H of ρ0·g·(H − y), and the pressure in
 /// bands 0.1 m high within 3 %.
 fn assert_column_stays_at_rest(depth: f64) {
-    let s = Scene::from_json(&format!(
-        r#"{{"particle_radius": 0.0025, "tank": {{"min": [0, 0], "max": [0.1, {}]}},
-            "fluid": [{{"min": [0, 0], "max": [0.1, {depth}]}}]}}"#,
-        1.25 * depth
-    ))
-    .unwrap();
+    let s = column(0.1, depth);
     let (rho0, g) = (1000.0f64, 9.81f64);
     let limit = 0.01 * (g * depth).sqrt();
     let mut sim = Simulation::new(&s).unwrap();
@@ -618,11 +624,7 @@ fn a_deep_narrow_column_stays_at_rest() {
     // sloshed at 1–3.5 m/s (docs/deep-columns.md). Before the pressure's bound on Δt
     // (`PRESSURE_WAVE_STABILITY`) it burst at the default 1 ms steps (13 m/s); with it the
     // steps are 0.68 ms and the largest speed is about 0.009 m/s.
-    let s = Scene::from_json(
-        r#"{"particle_radius": 0.0025, "tank": {"min": [0, 0], "max": [0.1, 2.5]},
-            "fluid": [{"min": [0, 0], "max": [0.1, 2.0]}]}"#,
-    )
-    .unwrap();
+    let s = column(0.1, 2.0);
     assert_eq!(s.packing, scene::Packing::Hexagonal);
     assert_eq!(
         s.solver.pressure_solve,
@@ -649,11 +651,7 @@ fn a_column_1000_layers_deep_stays_at_rest() {
     // 0.5 s, 9.7 iterations a step. Not checked here: the pressure near the floor drifts up
     // while the water stays still (10-13 % of rho0 g H by 0.2-0.5 s in this narrow column,
     // 2-3 % in one 0.1 m wide; docs/deep-columns.md, "1,000 layers").
-    let s = Scene::from_json(
-        r#"{"particle_radius": 0.0025, "tank": {"min": [0, 0], "max": [0.05, 6.0]},
-            "fluid": [{"min": [0, 0], "max": [0.05, 5.0]}]}"#,
-    )
-    .unwrap();
+    let s = column(0.05, 5.0);
     let limit = 0.01 * (9.81f64 * 5.0).sqrt();
     let mut sim = Simulation::new(&s).unwrap();
     assert_stays_under(&mut sim, 0.2, limit);

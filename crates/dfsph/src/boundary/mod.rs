@@ -211,7 +211,7 @@ impl BoundarySamples {
         rows.sort_unstable_by_key(|(_, r)| (r.j, r.i0));
         for p in rows
             .iter()
-            .flat_map(|(_, r)| crate::packing::row_sites(r, d))
+            .flat_map(|&(_, r)| crate::packing::row_sites(r, d))
         {
             let (x, y) = (p.x as f64, p.y as f64);
             let inside = x >= lo[0] - tolerance
