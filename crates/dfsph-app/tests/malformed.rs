@@ -115,6 +115,15 @@ fn scene_cases() -> Vec<(&'static str, Option<Vec<u8>>, &'static str)> {
             "lattice sites",
         ),
         (
+            "far-tank.json",
+            Some(
+                br#"{"tank": {"min": [10000, 0], "max": [10001, 1]},
+                     "fluid": [{"min": [10000, 0], "max": [10001, 0.5]}]}"#
+                    .to_vec(),
+            ),
+            "`tank.max[0]`: the tank reaches 10001 m from the origin",
+        ),
+        (
             "far-obstacle.json",
             Some(
                 br#"{"obstacles": [{"type": "polyline", "points": [[0, 0], [1e9, 0]]}]}"#.to_vec(),

@@ -69,6 +69,21 @@ pub struct Tank {
 }
 
 impl Tank {
+    /// The largest |coordinate| of the tank's corners, m, and the key that names it
+    /// (`tank.min[0]` … `tank.max[1]`).
+    pub fn farthest_coordinate(&self) -> (f64, String) {
+        let corners = [("min", self.min), ("max", self.max)];
+        let mut best = (0.0f64, "tank.max[0]".to_string());
+        for (name, corner) in corners {
+            for (axis, v) in corner.iter().enumerate() {
+                if v.abs() > best.0 {
+                    best = (v.abs(), format!("tank.{name}[{axis}]"));
+                }
+            }
+        }
+        best
+    }
+
     /// Coordinates closer than this count as equal when a scene places something on or
     /// inside the tank's boundary (1e-9 of its larger side: rounding in a scene file), m.
     pub fn edge_tolerance(&self) -> f64 {
@@ -328,6 +343,14 @@ pub const MAX_TIME_STEP: f64 = 1.0;
 /// across is a typo, and its grid would not fit in memory.
 pub const MAX_LATTICE_SITES: f64 = 1.0e9;
 
+/// Farthest a tank's corner may lie from the origin, in particle spacings d. The solver keeps
+/// positions in single precision, which resolves a coordinate X to X·2⁻²⁴: at 4,096
+/// spacings that is 2.4·10⁻⁴ d, and beyond it the rounding of the pair distances is felt in
+/// the density (a 1 m tank of water at rest at d = 2 cm, 1 s: 0.006 m/s at the origin,
+/// 0.016 m/s 5,000 spacings out, 0.10 m/s at 15,000, 0.49 m/s at 150,000, and 15 m/s at
+/// 500,000, where the walls leaked).
+pub const MAX_SPACINGS_FROM_ORIGIN: f64 = 4096.0;
+
 /// Closest two listed fluid particles (`particles`) may be, in particle spacings d: closer
 /// they are one particle written twice (the kernel's gradient vanishes between them, so the
 /// pressure cannot push them apart). Water in motion does bring pairs far closer than d: a
@@ -435,11 +458,16 @@ impl Scene {
 
     /// The particle radii [`Self::validate`] accepts for this tank, m: small enough that
     /// the tank fits two particles across, large enough that it holds at most
-    /// [`MAX_LATTICE_SITES`]. (`max_particles` bounds it too, through the fluid's count.)
+    /// [`MAX_LATTICE_SITES`] and lies within [`MAX_SPACINGS_FROM_ORIGIN`] of the origin.
+    /// (`max_particles` bounds it too, through the fluid's count.)
     pub fn particle_radius_limits(&self) -> (f64, f64) {
         let w = self.tank.max[0] - self.tank.min[0];
         let h = self.tank.max[1] - self.tank.min[1];
-        (0.5 * (w * h / MAX_LATTICE_SITES).sqrt(), 0.25 * w.min(h))
+        let far = self.tank.farthest_coordinate().0;
+        let smallest = (w * h / MAX_LATTICE_SITES)
+            .sqrt()
+            .max(far / MAX_SPACINGS_FROM_ORIGIN);
+        (0.5 * smallest, 0.25 * w.min(h))
     }
 
     /// The corner the hexagonal lattice of the fluid blocks, the tank's walls and the boxes
@@ -840,6 +868,21 @@ impl Scene {
             ));
         }
 
+        let (far, far_key) = self.tank.farthest_coordinate();
+        if far / d > MAX_SPACINGS_FROM_ORIGIN {
+            return Err(invalid(
+                far_key,
+                format!(
+                    "the tank reaches {far} m from the origin, {:.0} particle spacings: \
+                     positions are kept in single precision, which resolves {:.1e} of a \
+                     spacing there; place the tank within {MAX_SPACINGS_FROM_ORIGIN} spacings \
+                     ({} m at this particle_radius) of the origin, or use larger particles",
+                    far / d,
+                    far * f64::powi(2.0, -24) / d,
+                    MAX_SPACINGS_FROM_ORIGIN * d
+                ),
+            ));
+        }
         if self.fluid.is_empty() && self.particles.is_empty() {
             return Err(invalid(
                 "fluid",
@@ -1335,13 +1378,21 @@ mod tests {
 
     #[test]
     fn more_fluid_blocks_than_the_bound_are_rejected() {
-        let mut s = Scene::default();
-        s.tank.max = [1.0, 2000.0];
+        // Blocks one site each, 100 to a row (a tank 2,000 m tall would lie beyond
+        // `MAX_SPACINGS_FROM_ORIGIN`).
+        let mut s = Scene {
+            particle_radius: 0.005,
+            ..Scene::default()
+        };
+        s.tank.max = [1.0, 1.1];
         s.fluid = (0..=MAX_FLUID_BLOCKS)
-            .map(|i| FluidBlock {
-                min: [0.0, i as f64 * 0.1],
-                max: [0.1, (i + 1) as f64 * 0.1],
-                velocity: [0.0, 0.0],
+            .map(|i| {
+                let (x, y) = ((i % 100) as f64 * 0.01, (i / 100) as f64 * 0.01);
+                FluidBlock {
+                    min: [x, y],
+                    max: [x + 0.01, y + 0.01],
+                    velocity: [0.0, 0.0],
+                }
             })
             .collect();
         let e = s.validate().unwrap_err().to_string();
@@ -1585,23 +1636,62 @@ mod tests {
     fn the_radius_limits_are_the_validators() {
         let mut s = Scene::default();
         let (lo, hi) = s.particle_radius_limits();
-        assert!(lo < 1e-4 && hi == 0.75, "{lo} {hi}");
+        // The default tank (4 m × 3 m at the origin): the smallest radius is set by its far
+        // corner's distance from the origin, 4,096 spacings.
+        assert!(
+            lo == 4.0 / MAX_SPACINGS_FROM_ORIGIN / 2.0 && hi == 0.75,
+            "{lo} {hi}"
+        );
+        s.particle_radius = lo * 0.999;
+        let e = s.validate().unwrap_err().to_string();
+        assert!(e.contains("`tank.max[0]`"), "{e}");
+        s.tank.min = [-0.5, -0.5];
+        s.tank.max = [0.5, 0.5];
+        s.fluid[0].min = [-0.5, -0.5];
+        let (lo, hi) = s.particle_radius_limits();
+        assert!(
+            lo == 0.5 / MAX_SPACINGS_FROM_ORIGIN / 2.0 && hi == 0.25,
+            "{lo} {hi}"
+        );
         // Without fluid for the max_particles check to count.
         s.fluid[0].max = [2.0 * hi, 2.0 * hi];
         for (r, ok) in [(hi, true), (hi * 1.001, false)] {
             s.particle_radius = r;
             assert_eq!(s.validate().is_ok(), ok, "r = {r}");
         }
-        s.fluid[0].max = [1.0, 2.0];
+        s.fluid[0].max = [0.5, 0.5];
         s.max_particles = 50_000_000;
-        for (r, key) in [
-            (lo * 1.001, "max_particles"),
-            (lo * 0.999, "particle_radius"),
-        ] {
+        for (r, key) in [(lo * 1.001, "max_particles"), (lo * 0.999, "tank.min[0]")] {
             s.particle_radius = r;
             let e = s.validate().unwrap_err().to_string();
             assert!(e.contains(&format!("`{key}`")), "r = {r}: {e}");
         }
+    }
+
+    #[test]
+    fn a_tank_beyond_single_precisions_reach_is_rejected_naming_its_corner() {
+        let at = |x0: f64, r: f64| {
+            Scene::from_json(&format!(
+                r#"{{"particle_radius": {r}, "tank": {{"min": [{x0}, -1], "max": [{}, 0]}},
+                    "fluid": [{{"min": [{x0}, -1], "max": [{}, -0.5]}}]}}"#,
+                x0 + 1.0,
+                x0 + 1.0
+            ))
+        };
+        // 4,096 spacings at d = 2 cm: 81.92 m.
+        assert!(at(80.0, 0.01).is_ok());
+        let e = at(81.0, 0.01).unwrap_err().to_string();
+        assert!(
+            e.contains("`tank.max[0]`") && e.contains("4096 spacings"),
+            "{e}"
+        );
+        let e = at(-10_000.0, 0.01).unwrap_err().to_string();
+        assert!(e.contains("`tank.min[0]`"), "{e}");
+        // Larger particles reach farther.
+        assert!(at(1_000.0, 0.2).is_ok());
+        let far = at(80.0, 0.01).unwrap();
+        let (lo, _) = far.particle_radius_limits();
+        assert!((lo - 81.0 / 4096.0 / 2.0).abs() < 1e-12, "{lo}");
     }
 
     #[test]
