@@ -7,7 +7,7 @@ use std::process::Output;
 
 mod common;
 
-use common::{coarse_scene, dfsph2d, dfsph2d_with, replay, text};
+use common::{coarse_scene, dfsph2d, dfsph2d_with, replay, text, COARSE};
 use dfsph::simd::SimdPath;
 
 /// Every file under `dir/particles`, sorted by name, with its bytes.
@@ -280,4 +280,48 @@ fn run_without_until_needs_a_recording() {
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("--until"));
     assert!(!Path::new("never").exists());
+}
+
+/// A recording cut down to its header replays no step and says how much water it holds; one
+/// whose last action lies 10¹⁰ steps out is refused naming the recording's length and
+/// `--until`, not only the `--every` the user never gave.
+#[test]
+fn a_header_alone_reports_its_water_and_a_far_action_names_the_recording() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = coarse_scene(tmp.path());
+    let (rec, _) = stress_recording(tmp.path(), &scene, "2", "20");
+    let header = std::fs::read_to_string(&rec)
+        .unwrap()
+        .lines()
+        .next()
+        .unwrap()
+        .to_string();
+    let n = dfsph::Simulation::new(&dfsph::Scene::from_json(COARSE).unwrap())
+        .unwrap()
+        .fluid_count();
+    let only = tmp.path().join("header.jsonl");
+    std::fs::write(&only, format!("{header}\n")).unwrap();
+    let stdout = succeeded(replay(
+        scene.to_str().unwrap(),
+        &only,
+        &tmp.path().join("out"),
+        &[],
+    ));
+    assert!(stdout.contains(" 0 steps "), "{stdout}");
+    assert!(stdout.contains(&format!("; {n} fluid + ")), "{stdout}");
+
+    let far = tmp.path().join("far.jsonl");
+    std::fs::write(
+        &far,
+        format!("{header}\n{{\"step\":10000000000,\"action\":\"release_pointer\"}}\n"),
+    )
+    .unwrap();
+    let out = replay(scene.to_str().unwrap(), &far, &tmp.path().join("o2"), &[]);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("over the recording's 10000000000 steps")
+            && stderr.contains("give --until to replay part of it"),
+        "{stderr}"
+    );
 }

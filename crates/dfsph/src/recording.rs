@@ -39,6 +39,11 @@ pub const VERSION: u32 = 1;
 /// exhaust memory or crawl; 1024 is more than the cores of any machine a session is recorded on.
 pub const MAX_THREADS: usize = 1024;
 
+/// Most steps a recording may hold (an action's step, or the end line's count): 10¹⁰, weeks
+/// of a session at a thousand steps a second. A larger step is a corrupt or hostile file, and
+/// replaying to it would never end.
+pub const MAX_STEPS: u64 = 10_000_000_000;
+
 /// The first line: what the session started from.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -231,6 +236,21 @@ impl Recording {
                         )));
                     }
                 }
+                if e.end > MAX_STEPS {
+                    return Err(err(format!(
+                        "end line: `end` is {} steps, more than the {MAX_STEPS} a recording \
+                         may hold",
+                        e.end
+                    )));
+                }
+                let hex = |c: char| c.is_ascii_digit() || ('a'..='f').contains(&c);
+                if e.fingerprint.len() != 16 || !e.fingerprint.chars().all(hex) {
+                    return Err(err(format!(
+                        "end line: `fingerprint` must be 16 lowercase hexadecimal digits (the \
+                         final state's hash, as the recorder writes it), got {:?}",
+                        shortened(&e.fingerprint)
+                    )));
+                }
                 end = Some((number, e));
                 continue;
             }
@@ -242,6 +262,11 @@ impl Recording {
                 })?,
                 None => return Err(err("missing `step`".into())),
             };
+            if step > MAX_STEPS {
+                return Err(err(format!(
+                    "`step` {step} is more than the {MAX_STEPS} steps a recording may hold"
+                )));
+            }
             let action: Action = serde_json::from_value(serde_json::Value::Object(object))
                 .map_err(|e| err(format!("action: {e}")))?;
             if let Action::Reset { scene: Some(scene) } = &action {
@@ -278,6 +303,14 @@ impl Recording {
             rec.finish(end).expect("writing to memory");
         }
         String::from_utf8(out).expect("JSON is UTF-8")
+    }
+}
+
+/// `text` as it goes into an error message: at most 40 characters.
+fn shortened(text: &str) -> String {
+    match text.char_indices().nth(40) {
+        Some((cut, _)) => format!("{}...", &text[..cut]),
+        None => text.to_string(),
     }
 }
 
@@ -611,6 +644,31 @@ mod tests {
             (
                 with(5, r#"{"end":5,"time":0,"n_fluid":1,"fingerprint":"0"}"#),
                 "line 6: the session ends at step 5",
+            ),
+            (
+                with(5, r#"{"end":9,"time":0,"n_fluid":1,"fingerprint":"zz"}"#),
+                "line 6: end line: `fingerprint` must be 16 lowercase hexadecimal digits",
+            ),
+            (
+                with(
+                    5,
+                    r#"{"end":9,"time":0,"n_fluid":1,"fingerprint":"0123456789ABCDEF"}"#,
+                ),
+                "got \"0123456789ABCDEF\"",
+            ),
+            (
+                with(
+                    5,
+                    r#"{"end":10000000001,"time":0,"n_fluid":1,"fingerprint":"0123456789abcdef"}"#,
+                ),
+                "line 6: end line: `end` is 10000000001 steps, more than the 10000000000",
+            ),
+            (
+                with(
+                    1,
+                    r#"{"step":18446744073709551615,"action":"release_pointer"}"#,
+                ),
+                "line 2: `step` 18446744073709551615 is more than the 10000000000 steps",
             ),
         ];
         for (text, needle) in cases {

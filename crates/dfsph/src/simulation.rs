@@ -366,6 +366,10 @@ impl Simulation {
             sim.fluid.pressure_over_rho0 = p;
         }
         sim.update_neighborhoods();
+        // Before the first step the diagnostics hold the particle counts (a replay of a
+        // header alone, or Python's `step(0)`, reports the water it has, not none).
+        sim.stats.n_fluid = sim.fluid.len();
+        sim.stats.n_boundary = sim.boundary.len();
         Ok(sim)
     }
 
@@ -1237,7 +1241,7 @@ impl Simulation {
         self.step_count
     }
 
-    /// Diagnostics of the last step (all zero before the first).
+    /// Diagnostics of the last step (before the first: the particle counts, the rest zero).
     pub fn stats(&self) -> &StepStats {
         &self.stats
     }
