@@ -26,9 +26,10 @@ pub enum Command {
     ///
     /// Exits with 2, after writing its output, when the simulation produced non-finite values
     /// (it stops at that step) or clamped particles back into the tank (water went through a
-    /// wall; the run goes on to the end); with 74 when a write fails (a full disk), naming the
-    /// file and keeping the statistics and frames completed before it; with 130 when stopped
-    /// by Ctrl-C, SIGTERM or SIGHUP (after the current step, its files complete).
+    /// wall; the run goes on to the end); with 74 when a write fails (a full disk, an output
+    /// directory that cannot be created), naming the file and keeping the statistics and
+    /// frames completed before it; with 130 when stopped by Ctrl-C, SIGTERM or SIGHUP (after
+    /// the current step, its files complete).
     /// stats.csv and particles/index.csv grow a line at a time, so even a killed run keeps
     /// the statistics of its completed steps.
     Run(RunArgs),

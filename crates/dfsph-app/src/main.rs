@@ -13,7 +13,8 @@
 //!
 //! Exit codes: 0 success; 2 bad arguments or scene (nothing written), or a `run` whose
 //! simulation produced non-finite values or clamped particles back into the tank (output
-//! written); 74 an I/O error (a write failed: full disk, ...; what was completed is kept);
+//! written); 74 an I/O error (a write failed: full disk, an output directory that cannot be
+//! created, ...; what was completed is kept);
 //! 1 any other failure (the viewer, a failed validation check, a `stress` violation, a replay
 //! that diverged from its recording); 130 stopped by Ctrl-C, SIGTERM or SIGHUP (files complete
 //! up to the last step).
@@ -51,6 +52,15 @@ impl Failure {
     fn input(message: impl Into<String>) -> Self {
         Self {
             code: 2,
+            message: message.into(),
+        }
+    }
+
+    /// A file-system call that failed (an output directory that cannot be created: no
+    /// permission, a read-only disk): exit code [`IO_ERROR`].
+    fn io(message: impl Into<String>) -> Self {
+        Self {
+            code: IO_ERROR,
             message: message.into(),
         }
     }
@@ -232,7 +242,10 @@ fn run(args: RunArgs) -> Result<(), Failure> {
     if let Some(note) = slow_gif_note(&args.format, args.every) {
         let _ = writeln!(std::io::stderr(), "{note}");
     }
-    output::create_output_dir(&args.out).map_err(Failure::input)?;
+    output::create_output_dir(&args.out).map_err(|e| match e {
+        output::OutputDirError::Refused(m) => Failure::input(m),
+        output::OutputDirError::Io(m) => Failure::io(m),
+    })?;
     interrupt::install();
 
     let allow_blow_up = args.allow_blow_up;
@@ -406,7 +419,14 @@ fn check_every(
         (Some(until), _) => (until, format!("over --until {until} s")),
         (None, Some(r)) => {
             let span = r.steps() as f64 * scene.time_step.max;
-            (span, format!("over the recording's at most {span} s"))
+            (
+                span,
+                format!(
+                    "over the recording's {} steps (up to {span} s at time_step.max; give \
+                     --until to replay part of it)",
+                    r.steps()
+                ),
+            )
         }
         (None, None) => return Ok(()),
     };
@@ -450,7 +470,7 @@ fn validate_cmd(args: ValidateArgs) -> Result<(), Failure> {
         )));
     }
     std::fs::create_dir_all(&args.out).map_err(|e| {
-        Failure::input(format!(
+        Failure::io(format!(
             "cannot create output directory `{}`: {e}",
             args.out.display()
         ))

@@ -132,29 +132,47 @@ pub fn check_output_dir(dir: &Path) -> Result<(), String> {
     }
 }
 
+/// Why the output directory could not be prepared: a path that must not be used (a file, a
+/// symbolic link where the frames go: bad input) or a file-system call that failed
+/// (permission denied, a read-only or full disk: an I/O error).
+#[derive(Debug)]
+pub enum OutputDirError {
+    Refused(String),
+    Io(String),
+}
+
+impl std::fmt::Display for OutputDirError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Refused(m) | Self::Io(m) => f.write_str(m),
+        }
+    }
+}
+
 /// Create `dir` and `dir/particles`, and remove the files an earlier run of ours listed in
 /// `dir/`[`MANIFEST`] (with their `NAME.tmp`), so the directory holds exactly this run's
 /// output and every file of the user's. Call [`check_output_dir`] first.
-pub fn create_output_dir(dir: &Path) -> Result<(), String> {
+pub fn create_output_dir(dir: &Path) -> Result<(), OutputDirError> {
+    use OutputDirError::{Io, Refused};
     let particles = dir.join(PARTICLES_DIR);
     std::fs::create_dir_all(&particles).map_err(|e| {
-        format!(
+        Io(format!(
             "cannot create output directory `{}`: {e}",
             particles.display()
-        )
+        ))
     })?;
     // Checked again now that it exists: never follow a link out of `dir`.
-    check_output_dir(dir)?;
+    check_output_dir(dir).map_err(Refused)?;
     let manifest = dir.join(MANIFEST);
     for name in previous_outputs(&manifest)? {
         let path = dir.join(&name);
-        remove_our_file(&dfsph_io::atomic::tmp_path(&path))?;
-        remove_our_file(&path)?;
+        remove_our_file(&dfsph_io::atomic::tmp_path(&path)).map_err(Io)?;
+        remove_our_file(&path).map_err(Io)?;
     }
     match std::fs::remove_file(&manifest) {
         Ok(()) => {}
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-        Err(e) => return Err(format!("cannot remove `{}`: {e}", manifest.display())),
+        Err(e) => return Err(Io(format!("cannot remove `{}`: {e}", manifest.display()))),
     }
     // Temporary files of a run that was killed (SIGKILL, power loss) while writing them.
     for tmp in [
@@ -166,34 +184,35 @@ pub fn create_output_dir(dir: &Path) -> Result<(), String> {
         dfsph_io::atomic::tmp_path(&dir.join(GIF_FILE)),
         dfsph_io::atomic::tmp_path(&dir.join(MP4_FILE)),
     ] {
-        remove_our_file(&tmp)?;
+        remove_our_file(&tmp).map_err(Io)?;
     }
     Ok(())
 }
 
 /// The names listed in the manifest at `path` that are names we write (see
 /// [`is_our_output`]); anything else in it is ignored. None when there is no manifest.
-fn previous_outputs(path: &Path) -> Result<Vec<String>, String> {
+fn previous_outputs(path: &Path) -> Result<Vec<String>, OutputDirError> {
+    use OutputDirError::{Io, Refused};
+    let cannot_read = |e: std::io::Error| Io(format!("cannot read `{}`: {e}", path.display()));
     let meta = match std::fs::symlink_metadata(path) {
         Ok(m) => m,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-        Err(e) => return Err(format!("cannot read `{}`: {e}", path.display())),
+        Err(e) => return Err(cannot_read(e)),
     };
     if !meta.is_file() {
-        return Err(format!(
+        return Err(Refused(format!(
             "`{}` is not a regular file; it is where dfsph2d lists the files it wrote",
             path.display()
-        ));
+        )));
     }
-    let file =
-        std::fs::File::open(path).map_err(|e| format!("cannot read `{}`: {e}", path.display()))?;
+    let file = std::fs::File::open(path).map_err(cannot_read)?;
     let mut names = Vec::new();
     let mut lines = std::io::BufReader::new(file).lines();
     if !matches!(lines.next(), Some(Ok(ref l)) if l == MANIFEST_HEADER) {
         return Ok(names); // Not one of ours: remove nothing.
     }
     for line in lines {
-        let line = line.map_err(|e| format!("cannot read `{}`: {e}", path.display()))?;
+        let line = line.map_err(cannot_read)?;
         if is_our_output(&line) {
             names.push(line);
         }

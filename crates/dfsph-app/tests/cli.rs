@@ -470,10 +470,32 @@ fn run_help_says_what_an_existing_directory_gets() {
     );
     // And its exit codes for a failed write and a signal.
     assert!(
-        help.contains("with 74 when a write fails (a full disk), naming the file")
-            && help.contains("with 130 when stopped by Ctrl-C, SIGTERM or SIGHUP"),
+        help.contains(
+            "with 74 when a write fails (a full disk, an output directory that cannot be \
+             created), naming the file"
+        ) && help.contains("with 130 when stopped by Ctrl-C, SIGTERM or SIGHUP"),
         "{help}"
     );
+}
+
+/// An output directory the file system refuses to create is an I/O error (74), not bad input
+/// (2): the arguments are sound, the disk said no. sysfs refuses every `mkdir`, root's too.
+#[cfg(target_os = "linux")]
+#[test]
+fn an_output_directory_that_cannot_be_created_exits_74_naming_it() {
+    let out_dir = "/sys/dfsph2d-test-output";
+    let out = dfsph2d(&["run", "hydrostatic", "--until", "0.01", "--out", out_dir]);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(74), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.starts_with(&format!(
+            "error: cannot create output directory `{out_dir}/particles`: "
+        )),
+        "{stderr}"
+    );
+    assert!(!Path::new(out_dir).exists());
+    assert_eq!(text(&out.stdout), "");
 }
 
 #[test]
