@@ -298,7 +298,9 @@ impl PySimulation {
                 }
             },
         };
-        let limits = dfsph::memory::MemoryLimits::of_this_process(max_memory);
+        let limits = dfsph::memory::MemoryLimits::of_this_process_and_user(
+            max_memory.map(|bytes| (bytes, "max_memory")),
+        );
         let pool = match threads {
             None => None,
             Some(n) if n == 0 || n > MAX_THREADS => {

@@ -301,7 +301,8 @@ print("ok", reads)
 def test_a_scene_too_large_for_the_memory_limit_raises_memory_error():
     """The estimate is checked before anything large is allocated, against the limit given
     (and the machine's own): one MemoryError that says how much the scene needs."""
-    with pytest.raises(MemoryError, match=r"needs about .* more than --max-memory"):
+    # The limit is named as it was given here, not as the command line spells it.
+    with pytest.raises(MemoryError, match=r"needs about .* more than max_memory \(1\.00 MiB\)"):
         dfsph2d.Simulation("dam-break", max_memory="1M")
     with pytest.raises(ValueError, match="max_memory"):
         dfsph2d.Simulation("dam-break", max_memory=-5)

@@ -215,7 +215,7 @@ impl Simulation {
                     Some(scene) => scene.as_ref(),
                     None => &self.scene,
                 };
-                let limits = crate::memory::MemoryLimits::of_this_process(self.max_memory);
+                let limits = crate::memory::MemoryLimits::of_this_process_and_user(self.max_memory);
                 match Simulation::new_within(scene, &limits) {
                     Ok(mut sim) => {
                         // The caller's stop flag (Ctrl-C in `run`) holds across a reset,
@@ -759,7 +759,7 @@ mod tests {
         use crate::memory::{Limit, LimitSource, MemoryLimits};
         let limits = MemoryLimits {
             limits: vec![Limit {
-                source: LimitSource::User,
+                source: LimitSource::User("--max-memory"),
                 bytes: 64 << 20,
                 set_to: None,
             }],

@@ -222,8 +222,9 @@ impl Scene {
 /// Where a limit on this process's memory comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LimitSource {
-    /// The user's `--max-memory`.
-    User,
+    /// The user's own limit, by the name it was given with: `--max-memory` on the command
+    /// line, `max_memory` in Python.
+    User(&'static str),
     /// `MemAvailable` in `/proc/meminfo`: memory the kernel can give without swapping.
     Available,
     /// The cgroup's `memory.max` less its `memory.current` (cgroup v2; containers).
@@ -259,10 +260,16 @@ impl MemoryLimits {
     /// The limits of this process: available memory, the cgroup's, the address space's, and
     /// `user` (`--max-memory`) if given.
     pub fn of_this_process(user: Option<u64>) -> Self {
+        Self::of_this_process_and_user(user.map(|bytes| (bytes, "--max-memory")))
+    }
+
+    /// [`Self::of_this_process`] with the user's limit and the name it was given with
+    /// (`"max_memory"` from Python), which a refusal then names.
+    pub fn of_this_process_and_user(user: Option<(u64, &'static str)>) -> Self {
         let mut limits = Vec::new();
-        if let Some(bytes) = user {
+        if let Some((bytes, name)) = user {
             limits.push(Limit {
-                source: LimitSource::User,
+                source: LimitSource::User(name),
                 bytes,
                 set_to: None,
             });
@@ -300,12 +307,13 @@ impl MemoryLimits {
         Self { limits }
     }
 
-    /// The user's own limit (`--max-memory`), bytes, if one was given.
-    pub fn user(&self) -> Option<u64> {
-        self.limits
-            .iter()
-            .find(|l| l.source == LimitSource::User)
-            .map(|l| l.bytes)
+    /// The user's own limit (`--max-memory`), bytes, and the name it was given with, if one
+    /// was given.
+    pub fn user(&self) -> Option<(u64, &'static str)> {
+        self.limits.iter().find_map(|l| match l.source {
+            LimitSource::User(name) => Some((l.bytes, name)),
+            _ => None,
+        })
     }
 
     /// `Ok` when `estimate` fits every limit; otherwise one line saying how much the scene
@@ -321,7 +329,7 @@ impl MemoryLimits {
             return Ok(());
         };
         let what = match limit.source {
-            LimitSource::User => format!("--max-memory ({})", format_bytes(limit.bytes)),
+            LimitSource::User(name) => format!("{name} ({})", format_bytes(limit.bytes)),
             LimitSource::Available => format!(
                 "the memory available ({}, MemAvailable in /proc/meminfo)",
                 format_bytes(limit.bytes)
@@ -512,7 +520,7 @@ mod tests {
         let limits = |user: u64, avail: u64| MemoryLimits {
             limits: vec![
                 Limit {
-                    source: LimitSource::User,
+                    source: LimitSource::User("--max-memory"),
                     bytes: user,
                     set_to: None,
                 },

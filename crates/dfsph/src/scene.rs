@@ -343,6 +343,13 @@ pub const MAX_TIME_STEP: f64 = 1.0;
 /// across is a typo, and its grid would not fit in memory.
 pub const MAX_LATTICE_SITES: f64 = 1.0e9;
 
+/// Longest `name` a scene may have, in characters: it heads every summary line, the window's
+/// title and the HUD (a 10 MB name was printed whole).
+pub const MAX_NAME_CHARS: usize = 200;
+
+/// Longest `description`, in characters: one line of text, shown in the viewer.
+pub const MAX_DESCRIPTION_CHARS: usize = 2000;
+
 /// Farthest a tank's corner may lie from the origin, in particle spacings d. The solver keeps
 /// positions in single precision, which resolves a coordinate X to X·2⁻²⁴: at 4,096
 /// spacings that is 2.4·10⁻⁴ d, and beyond it the rounding of the pair distances is felt in
@@ -810,6 +817,18 @@ impl Scene {
                 Err(invalid(key, format!("must be greater than 0, got {v}")))
             }
         };
+        for (key, text, most) in [
+            ("name", &self.name, MAX_NAME_CHARS),
+            ("description", &self.description, MAX_DESCRIPTION_CHARS),
+        ] {
+            let chars = text.chars().count();
+            if chars > most {
+                return Err(invalid(
+                    key,
+                    format!("{chars} characters is longer than the {most} it may have"),
+                ));
+            }
+        }
         positive("particle_radius", self.particle_radius)?;
         positive("rest_density", self.rest_density)?;
         if !(MIN_REST_DENSITY..=MAX_REST_DENSITY).contains(&self.rest_density) {
@@ -1666,6 +1685,26 @@ mod tests {
             let e = s.validate().unwrap_err().to_string();
             assert!(e.contains(&format!("`{key}`")), "r = {r}: {e}");
         }
+    }
+
+    #[test]
+    fn a_name_or_description_too_long_to_print_is_rejected() {
+        let mut s = Scene {
+            name: "é".repeat(MAX_NAME_CHARS),
+            description: "d".repeat(MAX_DESCRIPTION_CHARS),
+            ..Scene::default()
+        };
+        s.validate().unwrap();
+        s.name.push('x');
+        let e = s.validate().unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "`name`: 201 characters is longer than the 200 it may have"
+        );
+        s.name.pop();
+        s.description.push('x');
+        let e = s.validate().unwrap_err().to_string();
+        assert!(e.starts_with("`description`: 2001 characters"), "{e}");
     }
 
     #[test]

@@ -84,9 +84,9 @@ pub struct Simulation {
     pub(crate) scene: Scene,
     /// Set from outside to end the conjugate-gradient solves early ([`Self::set_stop_flag`]).
     pub(crate) stop_flag: Option<&'static AtomicBool>,
-    /// The user's own memory limit, bytes (`--max-memory`, Python's `max_memory`), applied
+    /// The user's own memory limit, bytes, and its name (`--max-memory`, Python's `max_memory`), applied
     /// again when an action resets the simulation to another scene.
-    pub(crate) max_memory: Option<u64>,
+    pub(crate) max_memory: Option<(u64, &'static str)>,
     pub(crate) kernel: Kernel,
     /// Lattice spacing d, m.
     pub(crate) spacing: f32,
@@ -310,6 +310,7 @@ impl Simulation {
                 || bodies.as_ref().is_some_and(|r| r.covers(p, d))
         };
         sim.fluid.reserve(scene.fluid_particle_count());
+        let mut covered_sites = 0usize;
         let hexagonal_rows = if hexagonal {
             packing::rows_of_boxes(
                 scene.tank.min,
@@ -323,7 +324,9 @@ impl Simulation {
         for &(block, row) in &hexagonal_rows {
             let v = to_vec2(scene.fluid[block].velocity);
             for p in packing::row_sites(row, scene.spacing()) {
-                if !covered(p) {
+                if covered(p) {
+                    covered_sites += 1;
+                } else {
                     let id = sim.next_id;
                     sim.next_id += 1;
                     sim.fluid.push(p, v, id);
@@ -341,6 +344,7 @@ impl Simulation {
                     let y = block.min[1] + (j as f64 + 0.5) * scene.spacing();
                     let p = Vec2::new(x as f32, y as f32);
                     if covered(p) {
+                        covered_sites += 1;
                         continue;
                     }
                     let id = sim.next_id;
@@ -356,6 +360,13 @@ impl Simulation {
             sim.next_id += 1;
             sim.fluid
                 .push(to_vec2(p), to_vec2(scene.particles.velocity(i)), id);
+        }
+        if sim.fluid.is_empty() && covered_sites > 0 {
+            return Err(crate::scene::invalid(
+                "fluid",
+                "every lattice site of the fluid blocks lies inside an obstacle or a body, or \
+                 within a particle spacing of one: the scene would start without water",
+            ));
         }
         sim.rigid = bodies;
         sim.add_boundary_samples(samples);
@@ -1527,6 +1538,27 @@ mod tests {
             pairs += want.len();
         }
         assert!(pairs > 100, "the fluid must touch the walls: {pairs} pairs");
+    }
+
+    #[test]
+    fn water_entirely_inside_obstacles_is_refused_naming_fluid() {
+        for packing in ["square", "hexagonal"] {
+            let scene = |obstacle_max: f64| {
+                Scene::from_json(&format!(
+                    r#"{{"packing": "{packing}", "tank": {{"min": [0, 0], "max": [1, 1]}},
+                        "fluid": [{{"min": [0.2, 0], "max": [0.4, 0.2]}}],
+                        "obstacles": [{{"type": "rect", "min": [0.1, 0], "max": [{obstacle_max}, 0.3]}}]}}"#
+                ))
+                .unwrap()
+            };
+            let e = Simulation::new(&scene(0.5)).err().unwrap().to_string();
+            assert!(
+                e.starts_with("`fluid`: every lattice site of the fluid blocks lies inside"),
+                "{packing}: {e}"
+            );
+            // Half of it outside: the rest starts as water.
+            assert!(Simulation::new(&scene(0.3)).unwrap().fluid_count() > 0);
+        }
     }
 
     #[test]
