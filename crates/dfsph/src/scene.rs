@@ -350,6 +350,12 @@ pub const MAX_NAME_CHARS: usize = 200;
 /// Longest `description`, in characters: one line of text, shown in the viewer.
 pub const MAX_DESCRIPTION_CHARS: usize = 2000;
 
+/// Largest `viscosity.xsph`. XSPH and the Laplacian viscosity act in one explicit update, so
+/// the viscosity's step bound is shortened by `1 − xsph` (`viscosity::Viscosity::max_time_step`);
+/// at 1 no step would be stable, and 0.5 keeps half of it (the viewer's slider has the same
+/// range).
+pub const MAX_XSPH: f64 = 0.5;
+
 /// Farthest a tank's corner may lie from the origin, in particle spacings d. The solver keeps
 /// positions in single precision, which resolves a coordinate X to X·2⁻²⁴: at 4,096
 /// spacings that is 2.4·10⁻⁴ d, and beyond it the rounding of the pair distances is felt in
@@ -1199,11 +1205,13 @@ impl Scene {
                 ));
             }
         }
-        if v.xsph > 1.0 {
+        if v.xsph > MAX_XSPH {
             return Err(invalid(
                 "viscosity.xsph",
                 format!(
-                    "{} exceeds 1 (it is a fraction of the neighbour-averaged velocity)",
+                    "{} exceeds {MAX_XSPH} (the share of the way to the neighbours' average \
+                     velocity each step: beyond it the smoothing and a viscosity together are \
+                     unstable at any step the viscosity allows)",
                     v.xsph
                 ),
             ));
