@@ -393,19 +393,36 @@ impl Simulation {
         }
         let offset = self.bodies[0].offset;
         let centre = Vec2::new(spec.position[0] as f32, spec.position[1] as f32) + offset;
-        if self
-            .rigid
-            .as_ref()
-            .is_some_and(|r| (0..r.len()).any(|k| r.signed_distance(k, centre) < 0.0))
-        {
-            return Err("another body is there");
+        // Bodies may touch but not overlap (as in a scene file, `Scene::check_body_overlaps`):
+        // rapier pushes overlapping bodies apart at once, through whatever lies beyond (256
+        // bodies added at nearly one spot left through the floor and the lid).
+        let d = self.spacing;
+        let probe = crate::rigid::signed_distance_of(spec, centre);
+        if let Some(r) = self.rigid.as_ref() {
+            let outline: Vec<Vec2> = crate::rigid::outline_points(spec, 0.5 * d)
+                .into_iter()
+                .map(|p| p + offset)
+                .collect();
+            let new_in_old = (0..r.len()).any(|k| {
+                r.signed_distance(k, centre) < 0.0
+                    || outline.iter().any(|&p| r.signed_distance(k, p) < -0.25 * d)
+            });
+            // The bodies' own boundary particles lie along their outlines.
+            let old_in_new = self
+                .boundary
+                .position
+                .iter()
+                .zip(&self.boundary.body)
+                .filter(|&(_, &b)| b != 0 && self.bodies[b as usize].rigid.is_some())
+                .any(|(&p, _)| probe(p) < -0.25 * d);
+            if new_in_old || old_in_new {
+                return Err("another body is there");
+            }
         }
         // A body dropped onto an obstacle or a drawn wall would be pushed out of it by
         // rapier, through whatever lies beyond (the floor): it is refused, as on another body.
         // A new body must clear the walls' balls (radius d/2); a scene file may have one
         // resting on them, a quarter spacing in (`Scene::check_body_overlaps`).
-        let d = self.spacing;
-        let probe = crate::rigid::signed_distance_of(spec, centre);
         let walls = self
             .boundary
             .position
@@ -548,6 +565,48 @@ mod tests {
             Some("a wall is there")
         );
         assert_eq!(sim.apply(&circle([0.55, 0.75])).rejected, None);
+    }
+
+    /// A body may touch another but not overlap it, whether or not its centre lies inside:
+    /// of 256 boxes added a little apart at one spot one is taken, and the bodies stay in the
+    /// tank.
+    #[test]
+    fn a_body_overlapping_another_is_refused() {
+        let mut sim = sim();
+        let d = sim.spacing as f64;
+        let square = |x: f64, y: f64| Action::AddBody {
+            body: BodySpec::new_box([0.4, 0.4], 600.0, [x, y]),
+        };
+        assert_eq!(sim.apply(&square(2.0, 1.5)).rejected, None);
+        // Centre outside the first box, half of it inside.
+        assert_eq!(
+            sim.apply(&square(2.3, 1.5)).rejected,
+            Some("another body is there")
+        );
+        // And the first inside a larger second one.
+        let large = Action::AddBody {
+            body: BodySpec::new_box([1.2, 1.2], 600.0, [2.0, 1.5]),
+        };
+        assert_eq!(sim.apply(&large).rejected, Some("another body is there"));
+        // Side by side, a spacing apart: taken.
+        assert_eq!(sim.apply(&square(2.4 + d, 1.5)).rejected, None);
+        let mut taken = 0;
+        for k in 0..256 {
+            let a = sim.apply(&square(1.0 + 0.001 * k as f64, 2.2));
+            taken += usize::from(a.rejected.is_none());
+        }
+        assert_eq!(taken, 1);
+        for _ in 0..100 {
+            sim.step();
+        }
+        let (lo, hi) = sim.tank_interior();
+        for b in sim.rigid_bodies() {
+            let p = b.position;
+            assert!(
+                p.cmpge(lo).all() && p.cmple(hi).all(),
+                "{p} outside the tank"
+            );
+        }
     }
 
     fn sim() -> Simulation {
