@@ -36,8 +36,8 @@ pub struct Team<'a> {
 }
 
 impl Team<'_> {
-    /// This worker's number, `0..count()` (the solver's passes need only their shares).
-    #[cfg(all(test, feature = "parallel"))]
+    /// This worker's number, `0..count()`: the solver's passes need only their shares, and
+    /// a value every worker must agree on is read by worker 0 alone.
     pub fn index(&self) -> usize {
         self.index
     }

@@ -190,12 +190,12 @@ impl Simulation {
         Self::new_within(scene, &MemoryLimits::of_this_process(None))
     }
 
-    /// A flag that, once set (a signal handler's, for Ctrl-C), makes the conjugate-gradient
-    /// solves end at their next iteration: a deep scene's step, whose solve may run to
-    /// thousands of iterations, then ends within one and the caller can stop after it. The
-    /// step so ended is not converged; a caller that goes on stepping should clear the flag
-    /// first. (The Jacobi solve runs in lockstep across threads and is capped at its own
-    /// iteration count; it does not read the flag.)
+    /// A flag that, once set (a signal handler's, for Ctrl-C), makes the pressure solves
+    /// (conjugate gradients and Jacobi, density and divergence) end at their next iteration:
+    /// a deep scene's step, whose solve may run to thousands of iterations, then ends within
+    /// one and the caller can stop after it. The step so ended is not converged; a caller
+    /// that goes on stepping should clear the flag first. (The Jacobi solve runs in lockstep
+    /// across threads: one member reads the flag for all, so that all leave together.)
     pub fn set_stop_flag(&mut self, flag: &'static AtomicBool) {
         self.stop_flag = Some(flag);
     }

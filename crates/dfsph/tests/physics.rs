@@ -723,32 +723,34 @@ fn a_droplet_thrown_at_a_wall_does_not_bounce_back() {
     }
 }
 
-/// The stop flag (`Simulation::set_stop_flag`, Ctrl-C in `run`) ends the conjugate-gradient
-/// solve at its next iteration: a deep scene's step, which may run to thousands of
-/// iterations, ends within one. Cleared, the solve runs as before.
+/// The stop flag (`Simulation::set_stop_flag`, Ctrl-C in `run` and Python) ends the pressure
+/// solves, conjugate gradients or Jacobi, at their next iteration: a deep scene's step, which
+/// may run to thousands of iterations, ends within one. Cleared, the solve runs as before.
 #[test]
-fn the_stop_flag_ends_the_conjugate_gradient_solve() {
+fn the_stop_flag_ends_the_density_solve_of_either_kind() {
+    use dfsph::scene::PressureSolve;
     use std::sync::atomic::{AtomicBool, Ordering};
     static STOP: AtomicBool = AtomicBool::new(false);
-    let mut s = coarse("hydrostatic", 0.02);
-    s.solver.min_iterations = 5;
-    let mut sim = Simulation::new(&s).unwrap();
-    assert_eq!(
-        s.solver.pressure_solve,
-        dfsph::scene::PressureSolve::ConjugateGradient
-    );
-    sim.set_stop_flag(&STOP);
-    assert!(sim.step().density_iterations >= 5);
-    STOP.store(true, Ordering::Relaxed);
-    assert_eq!(sim.step().density_iterations, 0);
-    STOP.store(false, Ordering::Relaxed);
-    assert!(sim.step().density_iterations >= 5);
-    // A reset keeps the flag, as it keeps the memory limit.
-    assert_eq!(
-        sim.apply(&dfsph::Action::Reset { scene: None }).rejected,
-        None
-    );
-    STOP.store(true, Ordering::Relaxed);
-    assert_eq!(sim.step().density_iterations, 0);
-    STOP.store(false, Ordering::Relaxed);
+    for solve in [PressureSolve::ConjugateGradient, PressureSolve::Jacobi] {
+        let mut s = coarse("hydrostatic", 0.02);
+        s.solver.min_iterations = 5;
+        s.solver.pressure_solve = solve;
+        let mut sim = Simulation::new(&s).unwrap();
+        sim.set_stop_flag(&STOP);
+        assert!(sim.step().density_iterations >= 5, "{solve:?}");
+        STOP.store(true, Ordering::Relaxed);
+        let stopped = *sim.step();
+        assert_eq!(stopped.density_iterations, 0, "{solve:?}");
+        assert_eq!(stopped.divergence_iterations, 0, "{solve:?}");
+        STOP.store(false, Ordering::Relaxed);
+        assert!(sim.step().density_iterations >= 5, "{solve:?}");
+        // A reset keeps the flag, as it keeps the memory limit.
+        assert_eq!(
+            sim.apply(&dfsph::Action::Reset { scene: None }).rejected,
+            None
+        );
+        STOP.store(true, Ordering::Relaxed);
+        assert_eq!(sim.step().density_iterations, 0, "{solve:?}");
+        STOP.store(false, Ordering::Relaxed);
+    }
 }

@@ -8,6 +8,7 @@
 //! `JacobiProblem`; the notation is that of [`crate::solver`].
 
 use std::ops::Range;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::par::prelude::*;
 
@@ -186,14 +187,14 @@ fn jacobi_solve(
             next = 1 - next;
             rates_now = next;
         }
-        let (mut avg, mut max) = sweeps.residuals(team, &mine, next);
+        let (mut avg, mut max, mut stop) = sweeps.residuals(team, &mine, next);
         let mut iterations = 0;
-        while limits.unmet(avg, max, iterations) {
+        while limits.unmet(avg, max, iterations) && !stop {
             sweeps.apply(team, &mine, next, &mut moved);
             next = 1 - next;
             rates_now = next;
             let previous = (avg, max);
-            (avg, max) = sweeps.residuals(team, &mine, next);
+            (avg, max, stop) = sweeps.residuals(team, &mine, next);
             iterations += 1;
             if avg.is_nan() || avg > diverging_error_growth * previous.0 + limits.tolerance_pct {
                 // Jacobi is not guaranteed to converge (dense clusters, e.g. fluid pulled
@@ -255,6 +256,10 @@ struct Sweeps<'a> {
     /// it is taken in an order that does not depend on the work split (`reduce`), per part,
     /// then the parts in order.
     part_sums: Shared<'a, (f64, f64)>,
+    /// Whether the caller's stop flag was set, as the first member read it in the last
+    /// residual pass: every member must leave the loop at the same iteration (a member
+    /// reading the flag on its own could leave while the others wait at a barrier for it).
+    stop_seen: AtomicBool,
 }
 
 impl<'a> Sweeps<'a> {
@@ -297,6 +302,7 @@ impl<'a> Sweeps<'a> {
                 Shared::new(&mut scratch.previous_rate),
             ],
             warm: &scratch.warm,
+            stop_seen: AtomicBool::new(false),
             bodies: step.bodies,
             base_flux: step.nb.wall_flux,
             flux: Shared::new(&mut scratch.flux),
@@ -325,7 +331,10 @@ impl<'a> Sweeps<'a> {
     /// `increments[buffer]` and `rates[buffer]` with the next increments; then, after the
     /// barrier, the average and largest residual over all parts, in percent (every member
     /// takes the same sum in the same order, so all decide alike).
-    fn residuals(&self, team: &Team, mine: &Range<usize>, buffer: usize) -> (f64, f64) {
+    /// The residuals at the velocities as they are into `rates[buffer]` and the next
+    /// increments into `increments[buffer]`; returns the average and largest error, percent,
+    /// and whether a stop was requested (the same three values to every member).
+    fn residuals(&self, team: &Team, mine: &Range<usize>, buffer: usize) -> (f64, f64, bool) {
         // SAFETY: in this pass the velocities and the wall flux are only read; each part's
         // items and sum are written by the one member that took the part; the barrier below
         // ends the pass.
@@ -363,14 +372,21 @@ impl<'a> Sweeps<'a> {
             }
             *sum = acc;
         }
+        // Read and written around the barrier like the part sums: the next write comes in
+        // the next residual pass, after the barrier that ends the pass between.
+        if team.index() == 0 {
+            self.stop_seen
+                .store(self.step.stop_requested(), Ordering::Relaxed);
+        }
         team.wait();
+        let stop = self.stop_seen.load(Ordering::Relaxed);
         // SAFETY: the part sums are written only in the residual pass, which every member
         // has finished; the next one starts after another barrier.
         let (sum, max) = unsafe { self.part_sums.read() }
             .iter()
             .copied()
             .fold((0.0, 0.0), reduce::add_sum_max);
-        (sum / self.n as f64 * self.to_pct, max * self.to_pct)
+        (sum / self.n as f64 * self.to_pct, max * self.to_pct, stop)
     }
 
     /// The warm start, as the increments in `increments[buffer]`, part by part: every
