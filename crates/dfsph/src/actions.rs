@@ -399,23 +399,17 @@ impl Simulation {
         let d = self.spacing;
         let probe = crate::rigid::signed_distance_of(spec, centre);
         if let Some(r) = self.rigid.as_ref() {
-            let outline: Vec<Vec2> = crate::rigid::outline_points(spec, 0.5 * d)
-                .into_iter()
-                .map(|p| p + offset)
-                .collect();
-            let new_in_old = (0..r.len()).any(|k| {
-                r.signed_distance(k, centre) < 0.0
-                    || outline.iter().any(|&p| r.signed_distance(k, p) < -0.25 * d)
-            });
-            // The bodies' own boundary particles lie along their outlines.
-            let old_in_new = self
-                .boundary
-                .position
-                .iter()
-                .zip(&self.boundary.body)
-                .filter(|&(_, &b)| b != 0 && self.bodies[b as usize].rigid.is_some())
-                .any(|(&p, _)| probe(p) < -0.25 * d);
-            if new_in_old || old_in_new {
+            // The new body where it goes (in the shaken tank's frame), the others as they
+            // stand now.
+            let mut here = spec.clone();
+            here.position = [centre.x as f64, centre.y as f64];
+            let new = crate::rigid::placed(&here, d);
+            let centre_inside = (0..r.len()).any(|k| r.signed_distance(k, centre) < 0.0);
+            if centre_inside
+                || r.states()
+                    .iter()
+                    .any(|other| crate::rigid::placed(&other.spec, d).overlaps(&new, d))
+            {
                 return Err("another body is there");
             }
         }

@@ -248,7 +248,7 @@ impl Recording {
                     return Err(err(format!(
                         "end line: `fingerprint` must be 16 lowercase hexadecimal digits (the \
                          final state's hash, as the recorder writes it), got {:?}",
-                        shortened(&e.fingerprint)
+                        e.fingerprint.chars().take(40).collect::<String>()
                     )));
                 }
                 end = Some((number, e));
@@ -303,14 +303,6 @@ impl Recording {
             rec.finish(end).expect("writing to memory");
         }
         String::from_utf8(out).expect("JSON is UTF-8")
-    }
-}
-
-/// `text` as it goes into an error message: at most 40 characters.
-fn shortened(text: &str) -> String {
-    match text.char_indices().nth(40) {
-        Some((cut, _)) => format!("{}...", &text[..cut]),
-        None => text.to_string(),
     }
 }
 

@@ -559,25 +559,15 @@ impl Scene {
             return Ok(());
         }
         let d = self.spacing() as f32;
-        let outlines: Vec<Vec<glam::Vec2>> = self
+        let placed: Vec<_> = self
             .bodies
             .iter()
-            .map(|b| crate::rigid::outline_points(b, 0.5 * d))
-            .collect();
-        let distances: Vec<_> = self
-            .bodies
-            .iter()
-            .map(|b| {
-                let centre = glam::Vec2::new(b.position[0] as f32, b.position[1] as f32);
-                crate::rigid::signed_distance_of(b, centre)
-            })
+            .map(|b| crate::rigid::placed(b, d))
             .collect();
         let key = |i: usize| format!("bodies[{i}].position");
         for i in 0..self.bodies.len() {
             for j in 0..i {
-                let inside =
-                    |a: usize, b: usize| outlines[a].iter().any(|&p| distances[b](p) < -0.25 * d);
-                if inside(i, j) || inside(j, i) {
+                if placed[i].overlaps(&placed[j], d) {
                     return Err(invalid(
                         key(i),
                         format!("the body overlaps bodies[{j}]; bodies may touch but not overlap"),
@@ -595,15 +585,20 @@ impl Scene {
         for (k, obstacle) in self.obstacles.iter().enumerate() {
             let mut walls = crate::boundary::BoundarySamples::new(self.wall_layers());
             walls.add_obstacle(obstacle, d, self.hexagonal_anchor(), 1);
-            for (i, distance) in distances.iter().enumerate() {
+            for (i, body) in placed.iter().enumerate() {
                 let in_box = match obstacle {
-                    Obstacle::Rect { min, max } => outlines[i].iter().any(|p| {
+                    Obstacle::Rect { min, max } => body.outline.iter().any(|p| {
                         let (p, q) = (p.as_dvec2(), 0.25 * self.spacing() + face);
                         p.x > min[0] + q && p.x < max[0] - q && p.y > min[1] + q && p.y < max[1] - q
                     }),
                     _ => false,
                 };
-                if in_box || walls.positions.iter().any(|&p| distance(p) < 0.25 * d) {
+                if in_box
+                    || walls
+                        .positions
+                        .iter()
+                        .any(|&p| (body.distance)(p) < 0.25 * d)
+                {
                     return Err(invalid(
                         key(i),
                         format!(
