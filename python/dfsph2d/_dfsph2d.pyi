@@ -54,11 +54,13 @@ class Simulation:
     ) -> None: ...
     def step(self, n: int = 1) -> Dict[str, Any]:
         """Take ``n`` steps (each of the CFL Δt the solver chooses); returns the last step's
-        diagnostics (see :attr:`diagnostics`)."""
+        diagnostics (see :attr:`diagnostics`). Ctrl-C (``KeyboardInterrupt``) ends the step
+        in progress within one solver iteration, its pressure solve cut short, and raises
+        when that step is over; the simulation goes on normally with the next call."""
     def advance(self, seconds: float) -> Dict[str, Any]:
         """Step until ``seconds`` more of simulated time have passed (the last step may end a
-        little after); returns the last step's diagnostics. Ctrl-C interrupts it between
-        steps (``KeyboardInterrupt``), leaving a consistent state."""
+        little after); returns the last step's diagnostics. Ctrl-C interrupts it as it does
+        :meth:`step`: within one solver iteration, at the end of the step in progress."""
     @property
     def time(self) -> float:
         """Simulated time, s."""

@@ -10,8 +10,9 @@
 //! particles (or freed memory) after the next step.
 //!
 //! Steps run with the GIL released, in the simulation's own thread pool when it was given a
-//! thread count, and a long `advance` returns to Python every [`SIGNAL_CHECK`] to let Ctrl-C
-//! (`KeyboardInterrupt`) through.
+//! thread count. The calling thread checks for signals every [`SIGNAL_POLL`] while they run:
+//! Ctrl-C (`KeyboardInterrupt`) ends the step in progress within one solver iteration (its
+//! pressure solve left unconverged, as `run` does) and raises when that step is over.
 //!
 //! Threads. One simulation may be used from several Python threads. Its state sits behind a
 //! lock that is only ever waited for with the GIL released ([`PySimulation::lock`]): a thread
@@ -19,16 +20,18 @@
 //! its chunks, would hang both. `step` and `advance` hold the lock one chunk of steps
 //! ([`SIGNAL_CHECK`]) at a time, so another thread's reads and actions (`positions`, `time`,
 //! `push`, ...) wait at most one chunk and then see the state between two steps; the stepping
-//! call goes on after them.
+//! call goes on after them. The steps themselves run in a thread of their own
+//! ([`PySimulation::step_while`]) so that the calling thread, which does not hold the lock,
+//! can see Ctrl-C in the middle of a long step.
 
 use std::borrow::Cow;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Mutex, MutexGuard, TryLockError};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{mpsc, Arc, Mutex, MutexGuard, TryLockError};
 use std::time::{Duration, Instant};
 
 use dfsph::actions::ActionOutcome;
 use dfsph::rigid::BodySpec;
-use dfsph::{probes, Action, Scene, SceneError, Simulation, Vec2};
+use dfsph::{probes, Action, Scene, SceneError, Simulation, StepStats, Vec2};
 use dfsph_io::input::one_line;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2};
@@ -36,8 +39,11 @@ use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyTypeError, PyValueError}
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 
-/// How long `advance` steps with the GIL released before it checks for signals.
+/// How long `step` and `advance` step at a time before other threads get the state.
 const SIGNAL_CHECK: Duration = Duration::from_millis(100);
+
+/// How often a thread waiting for its steps checks for signals (Ctrl-C).
+const SIGNAL_POLL: Duration = Duration::from_millis(20);
 
 /// Longest a stepping thread waits between two chunks for other threads to take their turn
 /// with the state (a reader that holds it longer is waited for at the next chunk).
@@ -46,6 +52,18 @@ const YIELD_LIMIT: Duration = Duration::from_millis(50);
 /// Most worker threads a simulation may ask for: more than any machine's cores, far fewer
 /// than would exhaust the process's threads.
 const MAX_THREADS: usize = 1024;
+
+/// How a chunk of steps ([`PySimulation::chunk`]) ended.
+enum ChunkEnd {
+    /// Its time was up, or a stop was asked for: step on (or raise).
+    More,
+    /// Nothing more to do; the last step's diagnostics.
+    Done(StepStats),
+    /// A step did not move the clock on.
+    Stuck { time: f64, dt: f64 },
+    /// The stepping thread panicked.
+    Stopped,
+}
 
 /// The solver's state and the pool its steps run in.
 struct State {
@@ -87,6 +105,9 @@ struct PySimulation {
     /// Threads waiting for [`Self::state`]: a stepping thread lets them in between its chunks
     /// (the lock is not fair, and the stepper would otherwise take it straight back).
     waiting: AtomicUsize,
+    /// The simulation's stop flag ([`Simulation::set_stop_flag`]): set on Ctrl-C to end the
+    /// step in progress within one solver iteration.
+    stop: Arc<AtomicBool>,
 }
 
 /// The scene `scene` names: a dict (the JSON scene format), a built-in name, or the path of a
@@ -212,48 +233,98 @@ impl PySimulation {
         accepted(what, outcome)
     }
 
-    /// Step while `more(sim)` says so, with the GIL released, back in Python every
-    /// [`SIGNAL_CHECK`] for Ctrl-C; returns the last step's diagnostics. A step that does not
-    /// move the clock on (a non-finite or zero Δt) ends it with `RuntimeError`: the loop
-    /// would never end.
+    /// Step while `more(sim)` says so; returns the last step's diagnostics. The steps run in a
+    /// thread of their own, a chunk of at most [`SIGNAL_CHECK`] at a time, holding the state's
+    /// lock only while they run; this thread waits for them with the GIL released and checks
+    /// for signals every [`SIGNAL_POLL`]. On Ctrl-C (a signal handler that raises) it sets the
+    /// simulation's stop flag, which ends the step in progress within one solver iteration
+    /// (its pressure solve unconverged), and raises once that step is over. A step that does
+    /// not move the clock on (a non-finite or zero Δt) ends it with `RuntimeError`: the loop
+    /// would never end. The signal handler runs without the state's lock, so a handler that
+    /// reads the simulation waits for the chunk rather than deadlocking.
     fn step_while<'py>(
         &self,
         py: Python<'py>,
         mut more: impl FnMut(&Simulation) -> bool + Send,
     ) -> PyResult<Bound<'py, PyAny>> {
         loop {
-            // The lock is held for one chunk at a time: other threads get in between.
-            let mut guard = self.lock(py);
-            let state: &mut State = &mut guard;
-            let (done, stuck) = py.detach(|| {
-                state.in_pool(|sim| {
-                    let start = Instant::now();
-                    while start.elapsed() < SIGNAL_CHECK {
-                        if !more(sim) {
-                            return (true, false);
-                        }
-                        let dt = sim.step().dt;
-                        if !(dt.is_finite() && dt > 0.0) {
-                            return (true, true);
+            let (end, interrupted) = std::thread::scope(|scope| {
+                let (sender, receiver) = mpsc::channel();
+                let more = &mut more;
+                scope.spawn(move || {
+                    let mut guard = self.state.lock().unwrap_or_else(|e| e.into_inner());
+                    let end = guard.in_pool(|sim| self.chunk(sim, more));
+                    drop(guard);
+                    // The receiver waits until the end is sent: it cannot be gone.
+                    let _ = sender.send(end);
+                });
+                let mut interrupted = None;
+                let mut receiver = receiver;
+                loop {
+                    // The receiver is not Sync: it goes into the GIL-free closure and back.
+                    let (received, back) = py.detach(move || {
+                        let received = receiver.recv_timeout(SIGNAL_POLL);
+                        (received, receiver)
+                    });
+                    receiver = back;
+                    match received {
+                        Ok(end) => return (end, interrupted),
+                        Err(mpsc::RecvTimeoutError::Timeout) => {}
+                        Err(mpsc::RecvTimeoutError::Disconnected) => {
+                            // The stepping thread panicked (a solver bug); the scope re-raises
+                            // its panic when it ends.
+                            return (ChunkEnd::Stopped, interrupted);
                         }
                     }
-                    (false, false)
-                })
+                    if interrupted.is_none() {
+                        if let Err(e) = py.check_signals() {
+                            self.stop.store(true, Ordering::SeqCst);
+                            interrupted = Some(e);
+                        }
+                    }
+                }
             });
-            if stuck {
-                return Err(PyRuntimeError::new_err(format!(
-                    "the simulation stopped advancing at t = {} s (a step of {} s)",
-                    state.sim.time(),
-                    state.sim.stats().dt
-                )));
+            if let Some(e) = interrupted {
+                self.stop.store(false, Ordering::SeqCst);
+                return Err(e);
             }
-            if done {
-                return to_python(py, state.sim.stats());
+            match end {
+                ChunkEnd::More => {}
+                ChunkEnd::Done(stats) => return to_python(py, &stats),
+                ChunkEnd::Stuck { time, dt } => {
+                    return Err(PyRuntimeError::new_err(format!(
+                        "the simulation stopped advancing at t = {time} s (a step of {dt} s)"
+                    )))
+                }
+                ChunkEnd::Stopped => return Err(PyRuntimeError::new_err(
+                    "the step failed (a solver fault); the simulation is left as that step left it",
+                )),
             }
-            drop(guard);
             self.let_waiters_in(py);
+            // A signal that came as the chunk ended.
             py.check_signals()?;
         }
+    }
+
+    /// Steps for at most [`SIGNAL_CHECK`], while `more(sim)` says so and no stop is asked for.
+    fn chunk(&self, sim: &mut Simulation, more: &mut impl FnMut(&Simulation) -> bool) -> ChunkEnd {
+        let start = Instant::now();
+        while start.elapsed() < SIGNAL_CHECK {
+            if self.stop.load(Ordering::SeqCst) {
+                return ChunkEnd::More;
+            }
+            if !more(sim) {
+                return ChunkEnd::Done(*sim.stats());
+            }
+            let dt = sim.step().dt;
+            if !(dt.is_finite() && dt > 0.0) {
+                return ChunkEnd::Stuck {
+                    time: sim.time(),
+                    dt: sim.stats().dt,
+                };
+            }
+        }
+        ChunkEnd::More
     }
 
     /// Per-particle values (the solver's order) rearranged into id order.
@@ -317,15 +388,18 @@ impl PySimulation {
                     })?,
             ),
         };
-        let sim = py
+        let mut sim = py
             .detach(|| match &pool {
                 Some(pool) => pool.install(|| Simulation::new_within(&scene, &limits)),
                 None => Simulation::new_within(&scene, &limits),
             })
             .map_err(scene_error)?;
+        let stop = Arc::new(AtomicBool::new(false));
+        sim.set_stop_flag(Arc::clone(&stop));
         Ok(Self {
             state: Mutex::new(State { sim, pool }),
             waiting: AtomicUsize::new(0),
+            stop,
         })
     }
 

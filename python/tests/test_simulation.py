@@ -197,7 +197,23 @@ def test_errors_say_what_the_command_line_says(tmp_path):
         assert f"error: {err.value}" in out.stderr, (str(err.value), out.stderr)
 
 
-def test_step_takes_n_steps_and_ctrl_c_stops_a_long_advance():
+@pytest.fixture
+def ctrl_c():
+    """`_thread.interrupt_main` as Ctrl-C: Python's own SIGINT handler for the test. A process
+    started in the background by a non-interactive shell (`cmd &`) inherits SIGINT ignored,
+    and Python then installs no handler, so `interrupt_main` did nothing (the cause of this
+    suite's old "DID NOT RAISE KeyboardInterrupt" when run that way)."""
+    import _thread
+    import signal
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield _thread.interrupt_main
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def test_step_takes_n_steps_and_ctrl_c_stops_a_long_advance(ctrl_c):
     sim = dfsph2d.Simulation("dam-break", threads=1)
     # Before the first step the diagnostics count the water already there.
     first = sim.step(0)
@@ -205,10 +221,9 @@ def test_step_takes_n_steps_and_ctrl_c_stops_a_long_advance():
     last = sim.step(5)
     assert sim.step_count == 5 and last["step"] == 5
     assert sim.step(0)["step"] == 5
-    # Ctrl-C (here from a timer) interrupts an advance of 100 simulated seconds between
-    # steps, and the simulation stays usable.
-    import _thread
-    timer = threading.Timer(0.3, _thread.interrupt_main)
+    # Ctrl-C (here from a timer) interrupts an advance of 100 simulated seconds, and the
+    # simulation stays usable.
+    timer = threading.Timer(0.3, ctrl_c)
     timer.start()
     with pytest.raises(KeyboardInterrupt):
         sim.advance(100.0)
@@ -217,6 +232,28 @@ def test_step_takes_n_steps_and_ctrl_c_stops_a_long_advance():
     t = sim.time
     sim.step()
     assert sim.time > t
+
+
+def test_ctrl_c_ends_a_long_step_within_an_iteration(ctrl_c):
+    """One step whose solves are held to 10,000 iterations each (seconds of work) ends soon
+    after Ctrl-C, its solve cut short, and the simulation steps on normally afterwards."""
+    scene = dfsph2d.load_scene("hydrostatic")
+    scene["solver"] = {"pressure_solve": "jacobi", "min_iterations": 10000, "max_iterations": 10000}
+    sim = dfsph2d.Simulation(scene, threads=1)
+    timer = threading.Timer(0.3, ctrl_c)
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        sim.step()
+    timer.join()
+    # The step ran to its end, with its solves stopped early: far fewer than the 10,000
+    # iterations each that were asked for.
+    cut = sim.diagnostics
+    assert sim.step_count == 1 and cut["step"] == 1
+    assert cut["divergence_iterations"] + cut["density_iterations"] < 10000, cut
+    # The stop was for that step only.
+    scene["solver"] = {"pressure_solve": "jacobi", "min_iterations": 3, "max_iterations": 3}
+    sim = dfsph2d.Simulation(scene, threads=1)
+    assert sim.step()["density_iterations"] == 3
 
 
 def test_steps_release_the_gil():

@@ -220,7 +220,7 @@ impl Simulation {
                     Ok(mut sim) => {
                         // The caller's stop flag (Ctrl-C in `run`) holds across a reset,
                         // as the memory limit does.
-                        sim.stop_flag = self.stop_flag;
+                        sim.stop_flag = self.stop_flag.clone();
                         out.removed = self.fluid.len();
                         out.added = sim.fluid_count();
                         out.boundary_change =

@@ -24,6 +24,7 @@ use crate::solver::{self, Neighborhood, PairCache, Walls};
 use crate::step::StepContext;
 use crate::viscosity::Viscosity;
 use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
 
 pub use crate::settings::{MAX_STEP_DISPLACEMENT, PRESSURE_WAVE_STABILITY};
 
@@ -83,7 +84,7 @@ enum Terms {
 pub struct Simulation {
     pub(crate) scene: Scene,
     /// Set from outside to end the conjugate-gradient solves early ([`Self::set_stop_flag`]).
-    pub(crate) stop_flag: Option<&'static AtomicBool>,
+    pub(crate) stop_flag: Option<Arc<AtomicBool>>,
     /// The user's own memory limit, bytes, and its name (`--max-memory`, Python's `max_memory`), applied
     /// again when an action resets the simulation to another scene.
     pub(crate) max_memory: Option<(u64, &'static str)>,
@@ -196,7 +197,7 @@ impl Simulation {
     /// one and the caller can stop after it. The step so ended is not converged; a caller
     /// that goes on stepping should clear the flag first. (The Jacobi solve runs in lockstep
     /// across threads: one member reads the flag for all, so that all leave together.)
-    pub fn set_stop_flag(&mut self, flag: &'static AtomicBool) {
+    pub fn set_stop_flag(&mut self, flag: Arc<AtomicBool>) {
         self.stop_flag = Some(flag);
     }
 
@@ -529,7 +530,7 @@ impl Simulation {
             nb: Neighborhood::new(&self.fluid_lists, &self.boundary_lists, &self.pair_cache),
             boundary: &self.boundary,
             bodies: self.coupled.as_ref().filter(|c| !c.is_empty()),
-            stop: self.stop_flag,
+            stop: self.stop_flag.as_deref(),
         };
         (step, &mut self.fluid, self.pressure.as_mut())
     }

@@ -730,27 +730,28 @@ fn a_droplet_thrown_at_a_wall_does_not_bounce_back() {
 fn the_stop_flag_ends_the_density_solve_of_either_kind() {
     use dfsph::scene::PressureSolve;
     use std::sync::atomic::{AtomicBool, Ordering};
-    static STOP: AtomicBool = AtomicBool::new(false);
+    use std::sync::Arc;
+    let stop = Arc::new(AtomicBool::new(false));
     for solve in [PressureSolve::ConjugateGradient, PressureSolve::Jacobi] {
         let mut s = coarse("hydrostatic", 0.02);
         s.solver.min_iterations = 5;
         s.solver.pressure_solve = solve;
         let mut sim = Simulation::new(&s).unwrap();
-        sim.set_stop_flag(&STOP);
+        sim.set_stop_flag(Arc::clone(&stop));
         assert!(sim.step().density_iterations >= 5, "{solve:?}");
-        STOP.store(true, Ordering::Relaxed);
+        stop.store(true, Ordering::Relaxed);
         let stopped = *sim.step();
         assert_eq!(stopped.density_iterations, 0, "{solve:?}");
         assert_eq!(stopped.divergence_iterations, 0, "{solve:?}");
-        STOP.store(false, Ordering::Relaxed);
+        stop.store(false, Ordering::Relaxed);
         assert!(sim.step().density_iterations >= 5, "{solve:?}");
         // A reset keeps the flag, as it keeps the memory limit.
         assert_eq!(
             sim.apply(&dfsph::Action::Reset { scene: None }).rejected,
             None
         );
-        STOP.store(true, Ordering::Relaxed);
+        stop.store(true, Ordering::Relaxed);
         assert_eq!(sim.step().density_iterations, 0, "{solve:?}");
-        STOP.store(false, Ordering::Relaxed);
+        stop.store(false, Ordering::Relaxed);
     }
 }
