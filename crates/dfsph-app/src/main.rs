@@ -163,7 +163,11 @@ fn view(args: ViewArgs) -> Result<(), Failure> {
         &budgeted.memory_estimate_for(budgeted.max_particles as u64),
         args.max_memory,
     )?;
-    view::open(scene, args.exit_after, args.save_on_exit, args.record).map_err(Failure::runtime)
+    // The built-in scene a bare `dfsph2d` opens is fitted to this machine; a named one keeps
+    // its resolution.
+    let fit = args.scene.is_none();
+    view::open(scene, args.exit_after, args.save_on_exit, args.record, fit)
+        .map_err(Failure::runtime)
 }
 
 fn run(args: RunArgs) -> Result<(), Failure> {

@@ -20,6 +20,7 @@ use crate::hud::{self, FrameStats, History, HudInfo, Rate};
 use crate::input::{Command, InputMapper, Tool, ViewInput};
 use crate::panel::{self, PanelState};
 use crate::render::{self, ColorScale, Coloring, ViewTransform};
+use crate::resolution;
 use crate::scene_file::{self, SceneOpener};
 use crate::stepper::Stepper;
 use crate::video::VideoRecorder;
@@ -47,6 +48,35 @@ enum ShotPurpose {
     File(PathBuf),
     /// `--save-on-exit`: save, then close the window.
     Exit,
+}
+
+/// Measuring the pace to fit the scene to this machine ([`crate::resolution`]).
+#[derive(Clone, Copy, Debug)]
+struct FitMeasure {
+    /// When this measurement started: its first [`resolution::SETTLE_SECONDS`] are not
+    /// counted.
+    since: Instant,
+    /// Simulated seconds, wall seconds spent stepping them, and wall seconds counted since.
+    simulated: f64,
+    busy: f64,
+    wall: f64,
+    /// Fits made so far.
+    fits: u32,
+    /// The radius and pace measured before the last fit, for the exponent of the next.
+    before: Option<(f64, f64)>,
+}
+
+impl FitMeasure {
+    fn start(now: Instant, fits: u32, before: Option<(f64, f64)>) -> Self {
+        Self {
+            since: now,
+            simulated: 0.0,
+            busy: 0.0,
+            wall: 0.0,
+            fits,
+            before,
+        }
+    }
 }
 
 /// `--exit-after` / `--save-on-exit` progress.
@@ -160,6 +190,11 @@ pub struct ViewerApp {
     last_hud_rect: Option<egui::Rect>,
     time_scale: f64,
     radius_edit: f64,
+    /// Fitting the particle size to this machine, while it measures (`None` once done, or
+    /// for a scene the user chose).
+    fit: Option<FitMeasure>,
+    /// What the fit chose, for the HUD ("1,922 particles, fitted to this machine ...").
+    resolution_note: Option<String>,
     show_help: bool,
     history: History,
     fps: Rate,
@@ -235,6 +270,10 @@ impl ViewerApp {
         Ok(Self {
             mapper: InputMapper::new(sim.gravity(), 2.0 * sim.particle_radius()),
             radius_edit: sim.scene().particle_radius,
+            fit: opts
+                .fit_to_machine
+                .then(|| FitMeasure::start(started, 0, None)),
+            resolution_note: None,
             sim: Stepper::with_threads(sim, threads),
             requested_max_particles,
             loaded,
@@ -491,6 +530,10 @@ impl ViewerApp {
                 self.session_steps += 1;
                 self.record(&[s]);
             }
+            Command::ChangeResolution { finer } => {
+                self.fit = None;
+                self.change_resolution(ctx, finer);
+            }
             Command::Reset => {
                 // The scene as loaded, not as changed since: recorded as a reset to it.
                 let scene = self.loaded.clone();
@@ -498,6 +541,8 @@ impl ViewerApp {
                 self.load_other(ctx, scene, max);
             }
             Command::LoadScene(i) => {
+                self.fit = None;
+                self.resolution_note = None;
                 if let Some(b) = BUILTIN_SCENES.get(i) {
                     self.load_as_loaded(ctx, b.scene());
                     // Another tank: a zoom into the last one means nothing there.
@@ -512,6 +557,8 @@ impl ViewerApp {
             }
             Command::ShareLink => self.share_link(ctx),
             Command::SetParticleRadius(r) => {
+                self.fit = None;
+                self.resolution_note = None;
                 let mut scene = self.sim.scene().clone();
                 scene.particle_radius = r;
                 self.load_other(ctx, scene, self.requested_max_particles);
@@ -741,6 +788,7 @@ impl eframe::App for ViewerApp {
         // Everything below reads the simulation: it comes home first, with the steps it took
         // while the last frame was drawn.
         self.take_back_the_simulation(frame_seconds);
+        self.fit_to_machine(ctx);
         self.video.capture(&self.sim);
         if let Some(said) = self.video.poll() {
             self.set_status(said);
@@ -868,6 +916,78 @@ impl eframe::App for ViewerApp {
 }
 
 impl ViewerApp {
+    /// Once the pace has been measured for [`resolution::MEASURE_SECONDS`] (as simulated
+    /// time per wall time spent stepping, which the real-time pacing does not cap), restart
+    /// the scene with the particle size that keeps real time on this machine if it is slower
+    /// ([`resolution::radius_for_pace`]), and measure again; the HUD says what was chosen.
+    fn fit_to_machine(&mut self, ctx: &egui::Context) {
+        let Some(m) = self.fit else {
+            return;
+        };
+        if m.wall < resolution::MEASURE_SECONDS {
+            return;
+        }
+        self.fit = None;
+        // Simulated seconds per wall second of stepping: the pace this machine could keep
+        // (the pace shown is held to real time and cannot say how much faster it could go).
+        let pace = m.simulated / m.busy.max(1e-9) / self.time_scale;
+        let scene = self.sim.scene();
+        let now = (scene.particle_radius, pace);
+        let exponent = m.before.map_or(resolution::COST_EXPONENT, |before| {
+            resolution::measured_exponent(before, now)
+        });
+        let Some(radius) = resolution::radius_for_pace(
+            scene.particle_radius,
+            pace,
+            exponent,
+            scene.particle_radius_limits(),
+        )
+        .filter(|_| m.fits < resolution::MAX_FITS) else {
+            return;
+        };
+        let before = self.sim.fluid_count();
+        let mut fitted = self.loaded.clone();
+        fitted.particle_radius = radius;
+        if self.load_as_loaded(ctx, fitted) {
+            self.radius_edit = radius;
+            self.fit = Some(FitMeasure::start(Instant::now(), m.fits + 1, Some(now)));
+            self.resolution_note = Some(format!(
+                "{} particles, fitted to this machine ({} ran at x{pace:.2}); {} finer, {} \
+                 coarser",
+                resolution::thousands(self.sim.fluid_count()),
+                resolution::thousands(before),
+                resolution::FINER_KEY,
+                resolution::COARSER_KEY,
+            ));
+        }
+    }
+
+    /// Restart the scene as it stands with twice (`finer`) or half as many particles.
+    fn change_resolution(&mut self, ctx: &egui::Context, finer: bool) {
+        let scene = self.sim.scene();
+        let Some(radius) = resolution::radius_after_key(
+            scene.particle_radius,
+            finer,
+            scene.particle_radius_limits(),
+        ) else {
+            self.set_status(format!(
+                "the particles cannot be {} in this tank",
+                if finer { "finer" } else { "coarser" }
+            ));
+            return;
+        };
+        let mut scene = scene.clone();
+        scene.particle_radius = radius;
+        if self.load_other(ctx, scene, self.requested_max_particles) {
+            self.radius_edit = radius;
+            self.resolution_note = None;
+            self.set_status(format!(
+                "particle radius {radius} m: {} particles",
+                resolution::thousands(self.sim.fluid_count())
+            ));
+        }
+    }
+
     /// Bring the simulation home from its stepping and account for the steps it took, over
     /// `frame_seconds` of wall time.
     fn take_back_the_simulation(&mut self, frame_seconds: f64) {
@@ -877,6 +997,16 @@ impl ViewerApp {
             self.steps_per_second
                 .add(away.steps.len() as f64, frame_seconds);
             self.sim_rate.add(away.simulated, frame_seconds);
+        }
+        if let Some(m) = &mut self.fit {
+            if self.paused {
+                // A pause (or a single step) says nothing of this machine's pace.
+                *m = FitMeasure::start(Instant::now(), m.fits, m.before);
+            } else if m.since.elapsed().as_secs_f64() >= resolution::SETTLE_SECONDS {
+                m.simulated += away.simulated;
+                m.busy += away.busy;
+                m.wall += frame_seconds;
+            }
         }
         self.record(&away.steps);
     }
@@ -999,6 +1129,7 @@ impl ViewerApp {
             clamped: self.sim.total_clamped(),
             non_finite: self.sim.total_non_finite(),
             zoom: (!self.camera.is_fitted()).then_some(zoom),
+            resolution_note: self.resolution_note.as_deref(),
         };
         let shown = egui::Area::new(egui::Id::new("hud"))
             .fixed_pos(layout.hud)

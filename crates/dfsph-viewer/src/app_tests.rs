@@ -375,3 +375,71 @@ fn the_steps_run_on_the_threads_chosen_and_a_recording_names_them() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn resolution_keys_make_twice_or_half_as_many_particles() {
+    let (ctx, mut app) = app(coarse("dam-break"));
+    let before = app.sim.fluid_count();
+    app.apply(&ctx, Command::ChangeResolution { finer: true });
+    assert_eq!(app.sim.scene().particle_radius, 0.035);
+    assert_eq!(app.radius_edit, 0.035);
+    let finer = app.sim.fluid_count() as f64 / before as f64;
+    assert!((1.7..2.3).contains(&finer), "{finer}");
+    app.apply(&ctx, Command::ChangeResolution { finer: false });
+    app.apply(&ctx, Command::ChangeResolution { finer: false });
+    let coarser = app.sim.fluid_count() as f64 / before as f64;
+    assert!((0.4..0.6).contains(&coarser), "{coarser}");
+    // `R` goes back to the scene as loaded, as with the panel's radius slider.
+    app.apply(&ctx, Command::Reset);
+    assert_eq!(app.sim.fluid_count(), before);
+}
+
+#[test]
+fn the_opening_scene_is_fitted_to_a_slow_machine_and_a_chosen_one_is_not() {
+    let ctx = egui::Context::default();
+    let failures: Failures = Rc::new(RefCell::new(Vec::new()));
+    let mut opts = ViewerOptions::new(coarse("dam-break"));
+    opts.fit_to_machine = true;
+    let mut viewer = ViewerApp::with_context(&ctx, opts, failures, None).unwrap();
+    let before = viewer.sim.fluid_count();
+    // Measured: 0.4 simulated seconds a wall second. The cost goes as 1/r³, so the radius
+    // that keeps 1.5x real time is 0.05·(1.5/0.4)^(1/3) = 0.0777, rounded up to 0.078.
+    let measured = |pace: f64, fits: u32| FitMeasure {
+        since: Instant::now(),
+        simulated: pace * resolution::MEASURE_SECONDS,
+        busy: resolution::MEASURE_SECONDS,
+        wall: resolution::MEASURE_SECONDS,
+        fits,
+        before: None,
+    };
+    viewer.fit = Some(measured(0.4, 0));
+    viewer.fit_to_machine(&ctx);
+    assert_eq!(viewer.sim.scene().particle_radius, 0.078);
+    assert_eq!(
+        viewer.loaded.particle_radius, 0.078,
+        "R keeps the fitted size"
+    );
+    let count = viewer.sim.fluid_count();
+    assert!(count < before / 2, "{count} of {before}");
+    let note = viewer.resolution_note.clone().unwrap();
+    assert!(
+        note.starts_with(&format!(
+            "{count} particles, fitted to this machine ({before} ran"
+        )),
+        "{note}"
+    );
+    // It measures again; on pace now, it stays.
+    assert_eq!(viewer.fit.map(|m| (m.fits, m.wall)), Some((1, 0.0)));
+    viewer.fit = Some(measured(1.5, 1));
+    viewer.fit_to_machine(&ctx);
+    assert_eq!(viewer.sim.scene().particle_radius, 0.078);
+    assert!(viewer.fit.is_none());
+    // After the last fit it stops trying, however slow.
+    viewer.fit = Some(measured(0.1, resolution::MAX_FITS));
+    viewer.fit_to_machine(&ctx);
+    assert_eq!(viewer.sim.scene().particle_radius, 0.078);
+
+    // A scene the user chose is never fitted.
+    let (_, chosen) = app(coarse("dam-break"));
+    assert!(chosen.fit.is_none());
+}

@@ -307,6 +307,9 @@ pub struct HudInfo<'a> {
     pub non_finite: u64,
     /// The view's magnification when it is not the fitted view.
     pub zoom: Option<f32>,
+    /// The particle size fitted to this machine, said once chosen
+    /// ([`crate::resolution`]).
+    pub resolution_note: Option<&'a str>,
 }
 
 /// Draw the statistics in the top-left corner of the view.
@@ -367,17 +370,26 @@ pub fn hud(ui: &mut egui::Ui, info: &HudInfo) {
                         .color(Color32::from_rgb(255, 180, 80)),
                     None => mono(text),
                 });
-                // The scene runs as written, whatever its size: say why it is slow.
+                // The scene runs as written, whatever its size: say why it is slow, and
+                // what to press.
                 if info.slowed.is_some() {
                     ui.label(
                         RichText::new(format!(
-                            "slower than real time: {} particles",
-                            info.particles
+                            "slower than real time: {} particles; {} for half as many",
+                            crate::resolution::thousands(info.particles),
+                            crate::resolution::COARSER_KEY,
                         ))
                         .strong()
                         .color(Color32::from_rgb(255, 180, 80)),
                     );
                 }
+            }
+            if let Some(note) = info.resolution_note {
+                ui.label(
+                    RichText::new(note)
+                        .strong()
+                        .color(Color32::from_rgb(150, 210, 255)),
+                );
             }
             if let Some(zoom) = info.zoom {
                 ui.label(mono(format!("zoom x{zoom:.1}   0: fit the tank")));

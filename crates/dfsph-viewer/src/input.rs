@@ -45,6 +45,10 @@ pub const KEY_HELP: &[(&str, &str)] = &[
          (drawn walls go)",
     ),
     ("C", "cycle the colouring (speed, density, pressure)"),
+    (
+        "] / [",
+        "finer / coarser particles: twice / half as many (restarts the scene)",
+    ),
     ("F12", "save a PNG screenshot to the current directory"),
     (
         "Ctrl+S",
@@ -168,6 +172,9 @@ pub enum Command {
     ToggleHelp,
     /// Restart the current scene with this particle radius, m (from the side panel).
     SetParticleRadius(f64),
+    /// Restart the current scene with finer (`true`) or coarser particles: twice or half as
+    /// many (`crate::resolution::KEY_FACTOR`).
+    ChangeResolution { finer: bool },
     /// Save the state as a scene file in the current directory.
     SaveScene,
     /// Show the dialog that opens a scene file.
@@ -451,6 +458,18 @@ impl InputMapper {
         }
         if input.key_pressed(Key::R) {
             out.push(Command::Reset);
+        }
+        // `[` and `]` arrive as keys on some layouts and only as text on others.
+        let typed = |c: &str| {
+            input
+                .events
+                .iter()
+                .any(|e| matches!(e, egui::Event::Text(t) if t == c))
+        };
+        if input.key_pressed(Key::CloseBracket) || typed("]") {
+            out.push(Command::ChangeResolution { finer: true });
+        } else if input.key_pressed(Key::OpenBracket) || typed("[") {
+            out.push(Command::ChangeResolution { finer: false });
         }
         for (i, key) in SCENE_KEYS.iter().enumerate() {
             if i < BUILTIN_SCENES.len() && input.key_pressed(*key) {

@@ -23,6 +23,7 @@ pub mod hud;
 pub mod input;
 pub mod panel;
 pub mod render;
+pub mod resolution;
 pub mod scene_file;
 pub mod share;
 pub mod stepper;
@@ -53,6 +54,10 @@ pub struct ViewerOptions {
     /// Record every action with the step at which it applies into this file (JSON lines,
     /// `docs/recording.md`), for `dfsph2d run SCENE --replay FILE`.
     pub record: Option<PathBuf>,
+    /// Fit the scene's particle size to this machine's speed in the first seconds
+    /// ([`resolution`]): for the built-in scene the window opens with when none is named;
+    /// a scene the user names keeps its resolution.
+    pub fit_to_machine: bool,
 }
 
 impl ViewerOptions {
@@ -63,6 +68,7 @@ impl ViewerOptions {
             exit_after: None,
             save_on_exit: None,
             record: None,
+            fit_to_machine: false,
         }
     }
 }

@@ -95,6 +95,8 @@ struct Returned {
     sim: Box<Simulation>,
     steps: Vec<StepStats>,
     simulated: f64,
+    /// Wall seconds spent in the steps.
+    busy: f64,
     wall: f64,
 }
 
@@ -105,6 +107,9 @@ pub struct Away {
     pub steps: Vec<StepStats>,
     /// Simulated seconds they covered.
     pub simulated: f64,
+    /// Wall seconds spent in those steps (the rest of the time away the stepping waited
+    /// for the clock): `simulated / busy` is how fast this machine could run the scene.
+    pub busy: f64,
     /// Wall seconds the simulation was away.
     pub wall: f64,
     /// Simulated seconds owed but dropped because the stepping fell behind.
@@ -295,6 +300,7 @@ impl Stepper {
                 Away {
                     steps: back.steps,
                     simulated: back.simulated,
+                    busy: back.busy,
                     wall,
                     dropped,
                 }
@@ -335,6 +341,8 @@ impl Stepper {
 struct Stepped {
     steps: Vec<StepStats>,
     simulated: f64,
+    /// Wall seconds spent in the steps.
+    busy: f64,
     /// A step came back with a non-finite or zero Δt: nothing more is stepped (a loop must
     /// not spin on it).
     broken: bool,
@@ -347,7 +355,9 @@ impl Stepped {
     }
 
     fn step(&mut self, sim: &mut Simulation) {
+        let started = Instant::now();
         let s = *sim.step();
+        self.busy += started.elapsed().as_secs_f64();
         self.steps.push(s);
         self.broken = !(s.dt.is_finite() && s.dt > 0.0);
         if !self.broken {
@@ -386,6 +396,7 @@ fn step_paced(job: Job, stop: &AtomicBool) -> Returned {
         sim,
         steps: stepped.steps,
         simulated: stepped.simulated,
+        busy: stepped.busy,
         wall: start.elapsed().as_secs_f64(),
     }
 }
@@ -481,6 +492,7 @@ impl FrameStepper {
         Away {
             steps: stepped.steps,
             simulated: stepped.simulated,
+            busy: stepped.busy,
             wall,
             dropped,
         }
