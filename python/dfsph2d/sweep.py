@@ -7,10 +7,11 @@ from a base scene and the values to try::
 
     from dfsph2d import sweep
 
-    runs = sweep.grid("dam-break", particle_radius=[0.02, 0.01, 0.005])
-    table = sweep.sweep(runs, until=0.4)             # a LocalCluster on this machine
-    table = sweep.sweep(runs, until=0.4, address="tcp://scheduler:8786")  # any Dask cluster
-    table.groupby("particle_radius").front.last()
+    if __name__ == "__main__":  # a local cluster's workers import this script again
+        runs = sweep.grid("dam-break", particle_radius=[0.02, 0.01, 0.005])
+        table = sweep.sweep(runs, until=0.4)             # a LocalCluster on this machine
+        table = sweep.sweep(runs, until=0.4, address="tcp://scheduler:8786")  # any cluster
+        table.groupby("particle_radius").front.last()
 
 Each run steps its own simulation on ``threads`` threads (1 by default: the cluster's workers
 are the parallelism) and records :func:`default_measure` (or ``measure(sim)``) at t = 0 and
@@ -146,7 +147,15 @@ def _on_dask(runs: List[Run], args: Dict[str, Any], address: Optional[str], clie
     if address is not None:
         with Client(address) as c:
             return _gather(c, runs, args)
-    with LocalCluster(threads_per_worker=1, dashboard_address=None) as cluster:
+    try:
+        cluster = LocalCluster(threads_per_worker=1, dashboard_address=None)
+    except Exception as e:
+        raise RuntimeError(
+            f"could not start a local Dask cluster ({e}); in a script, call dfsph2d.sweep "
+            "under `if __name__ == \"__main__\":`, since the cluster's worker processes "
+            "import the script again (docs/python.md, Sweeps)"
+        ) from e
+    with cluster:
         with Client(cluster) as c:
             return _gather(c, runs, args)
 

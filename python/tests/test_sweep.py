@@ -61,3 +61,45 @@ def test_a_sweep_on_a_local_cluster_gives_the_serial_fronts():
 def test_a_run_without_a_scene_is_refused():
     with pytest.raises(ValueError, match=r"runs\[1\] has no 'scene'"):
         sweep.sweep([{"scene": "dam-break"}, {"cfl": 1}], until=0.1, serial=True)
+
+
+def docs_snippet():
+    """The sweep example of docs/python.md ("Sweeps on a Dask cluster"), as written."""
+    import pathlib
+    import re
+
+    docs = pathlib.Path(__file__).resolve().parents[2] / "docs" / "python.md"
+    text = docs.read_text()
+    section = text[text.index("## Sweeps on a Dask cluster"):]
+    return re.search(r"```python\n(.*?)```", section, re.S).group(1)
+
+
+def run_script(path, code):
+    import subprocess
+    import sys
+
+    path.write_text(code)
+    return subprocess.run([sys.executable, str(path)], capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_the_docs_sweep_runs_as_a_script(tmp_path):
+    run = run_script(tmp_path / "sweep_script.py", docs_snippet())
+    assert run.returncode == 0, run.stderr
+    # Two radii, each with its mean front at t = 0.4 s, past the column's 1 m width.
+    fronts = [line.split() for line in run.stdout.splitlines() if line.startswith("0.0")]
+    assert [f[0] for f in fronts] == ["0.02", "0.04"], run.stdout
+    assert all(1.5 < float(f[1]) < 3.0 for f in fronts), run.stdout
+
+
+def test_a_script_without_the_guard_is_told_to_add_it(tmp_path):
+    lines = []
+    for line in docs_snippet().splitlines():
+        if line.startswith("if __name__"):
+            continue
+        lines.append(line[4:] if line.startswith("    ") else line)
+    run = run_script(tmp_path / "unguarded.py", "\n".join(lines) + "\n")
+    assert run.returncode != 0
+    last = run.stderr.strip().splitlines()[-1]
+    assert last.startswith("RuntimeError: could not start a local Dask cluster"), last
+    assert 'under `if __name__ == "__main__":`' in last, last
