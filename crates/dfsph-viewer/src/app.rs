@@ -582,6 +582,7 @@ impl ViewerApp {
                 self.set_status(said);
             }
             Command::ToggleHelp => self.show_help = !self.show_help,
+            Command::CloseHelp => self.show_help = false,
             Command::ToggleRecording => {
                 let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
                 let said = self.video.toggle(&self.sim, &dir);

@@ -59,7 +59,7 @@ pub const KEY_HELP: &[(&str, &str)] = &[
         "V",
         "record / stop a video (GIF, and MP4 with ffmpeg) into the current directory",
     ),
-    ("H or ?", "show / hide this help"),
+    ("H or ?", "show / hide this help (Esc closes it)"),
 ];
 
 /// The number keys that load the built-in scenes, for `count` scenes: "1 – 5" (keys 1–9
@@ -170,6 +170,8 @@ pub enum Command {
     ToggleRecording,
     /// Show or hide the help overlay.
     ToggleHelp,
+    /// Hide the help overlay (Esc).
+    CloseHelp,
     /// Restart the current scene with this particle radius, m (from the side panel).
     SetParticleRadius(f64),
     /// Restart the current scene with finer (`true`) or coarser particles: twice or half as
@@ -501,6 +503,9 @@ impl InputMapper {
         if input.key_pressed(Key::H) || question {
             out.push(Command::ToggleHelp);
         }
+        if input.key_pressed(Key::Escape) {
+            out.push(Command::CloseHelp);
+        }
     }
 
     fn pointer(&mut self, input: &egui::InputState, view: ViewInput, out: &mut Vec<Command>) {
@@ -620,7 +625,9 @@ impl InputMapper {
             self.release(out);
             return;
         }
-        if primary && (keys(Key::X) || tool == PrimaryTool::Erase) {
+        // A click may press and release the button within one slow frame: it still erases.
+        let clicked = primary || p.primary_pressed();
+        if clicked && (keys(Key::X) || tool == PrimaryTool::Erase) {
             self.tool = Tool::Erase;
             self.release(out);
             out.push(Command::Sim(Action::Erase {
@@ -1142,6 +1149,32 @@ mod tests {
             })]
         );
         assert_eq!(h.mapper.tool(), Tool::Erase);
+    }
+
+    #[test]
+    fn a_quick_x_click_within_one_frame_still_erases() {
+        // At a low frame rate the press and the release arrive in the same frame.
+        let mut h = Harness::new();
+        let out = h.frame(vec![
+            key(Key::X, true),
+            moved(),
+            button(PointerButton::Primary, true, Modifiers::NONE),
+            button(PointerButton::Primary, false, Modifiers::NONE),
+        ]);
+        assert_eq!(
+            out,
+            vec![Command::Sim(Action::Erase {
+                at: h.pointer.unwrap(),
+                radius: h.mapper.tool_radius
+            })]
+        );
+    }
+
+    #[test]
+    fn escape_closes_the_help() {
+        let mut h = Harness::new();
+        let out = h.frame(vec![key(Key::Escape, true)]);
+        assert_eq!(out, vec![Command::CloseHelp]);
     }
 
     #[test]
