@@ -73,10 +73,52 @@ pub fn start() -> Result<(), JsValue> {
             .await;
         if let Err(e) = started {
             web_sys::console::error_1(&e);
+            show_start_failure(&e);
         }
     });
     Ok(())
 }
+
+/// Say on the page why the viewer did not start (no WebGL, most often: Chromium blocklists
+/// software GL under a virtual display), in the page's `#loading` box, which index.html has
+/// already taken away by then, and in `window.dfsph2d.error` for scripts. Without it the
+/// page stayed blank.
+fn show_start_failure(error: &JsValue) {
+    let reason = error
+        .as_string()
+        .or_else(|| {
+            js_sys::Reflect::get(error, &JsValue::from_str("message"))
+                .ok()
+                .and_then(|m| m.as_string())
+        })
+        .unwrap_or_else(|| format!("{error:?}"));
+    let text = format!(
+        "dfsph2d could not start in this browser: {reason}. It draws with WebGL: turn on \
+         hardware acceleration (or WebGL) in the browser's settings, or try a current \
+         Chrome, Firefox, Safari or Edge."
+    );
+    let Some(document) = web_sys::window().and_then(|w| w.document()) else {
+        return;
+    };
+    let element = document.get_element_by_id(MESSAGE_ID).or_else(|| {
+        let element = document.create_element("div").ok()?;
+        element.set_id(MESSAGE_ID);
+        document.body()?.append_child(&element).ok()?;
+        Some(element)
+    });
+    if let Some(element) = element {
+        element.set_text_content(Some(&text));
+    }
+    if let Some(api) = web_sys::window()
+        .and_then(|w| js_sys::Reflect::get(&w, &JsValue::from_str("dfsph2d")).ok())
+        .filter(|api| api.is_object())
+    {
+        let _ = js_sys::Reflect::set(&api, &JsValue::from_str("error"), &JsValue::from_str(&text));
+    }
+}
+
+/// The page's message box (index.html styles it over the canvas).
+const MESSAGE_ID: &str = "loading";
 
 /// `window.dfsph2d.state()`: the last frame's particles (fluid count), simulated time (s),
 /// mean x of the fluid (m), steps taken, real-time factor and frames per second, the

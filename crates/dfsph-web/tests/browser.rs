@@ -150,6 +150,11 @@ struct Browser {
 
 impl Browser {
     fn start(chromium: &Path, chromedriver: &Path) -> Browser {
+        Self::start_with(chromium, chromedriver, &[])
+    }
+
+    /// [`Self::start`] with more command-line switches for Chromium.
+    fn start_with(chromium: &Path, chromedriver: &Path, extra: &[&str]) -> Browser {
         let port = free_port();
         let log = std::env::temp_dir().join("dfsph2d-browser-test-chromedriver.log");
         let driver = Command::new(chromedriver)
@@ -186,7 +191,7 @@ impl Browser {
             );
             std::thread::sleep(Duration::from_millis(100));
         }
-        let args = [
+        let mut args = vec![
             "--headless=new".to_string(),
             "--no-sandbox".into(),
             "--disable-gpu-sandbox".into(),
@@ -202,6 +207,7 @@ impl Browser {
             "--window-size=1280,800".into(),
             format!("--user-data-dir={}", browser.profile.path().display()),
         ];
+        args.extend(extra.iter().map(|a| a.to_string()));
         let caps = json!({"capabilities": {"alwaysMatch": {
             "browserName": "chrome",
             "goog:chromeOptions": {"binary": chromium, "args": args},
@@ -545,6 +551,40 @@ fn the_page_runs_draws_the_water_and_d_shakes_the_tank_right() {
          d held from {:.3} s to {:.3} s: mean x {:.3} m, {still:.3} m without the key \
          (at {:.3} s: {:.3} m)",
         down.time, held.time, held.mean_x, first.time, first.mean_x
+    );
+
+    // Without WebGL (Chromium's default where it blocklists a software GL) the page says
+    // why it shows nothing, where it was blank.
+    let without_webgl = Browser::start_with(
+        &chromium,
+        &chromedriver,
+        &["--disable-webgl", "--disable-3d-apis"],
+    );
+    without_webgl.open(&url);
+    let asked = Instant::now();
+    let error = loop {
+        let error = without_webgl.eval("return window.dfsph2d && window.dfsph2d.error;");
+        if let Some(text) = error.as_str() {
+            break text.to_string();
+        }
+        assert!(
+            asked.elapsed() < START_TIMEOUT,
+            "the page without WebGL gave no error{}",
+            without_webgl.diagnostics()
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let shown = without_webgl.eval(
+        "const m = document.getElementById('loading'); \
+         return m && m.offsetParent !== null ? m.textContent : null;",
+    );
+    drop(without_webgl);
+    eprintln!("browser test: without WebGL the page says: {shown}");
+    assert!(error.contains("WebGL"), "{error}");
+    assert_eq!(
+        shown.as_str(),
+        Some(error.as_str()),
+        "the message is not on the page"
     );
 
     let shot = Path::new(env!("CARGO_TARGET_TMPDIR")).join("browser-screenshot.png");
