@@ -243,6 +243,9 @@ fn run(args: RunArgs) -> Result<(), Failure> {
     if let Some(note) = long_run_note(&sim, args.until) {
         let _ = writeln!(std::io::stderr(), "{note}");
     }
+    if let Some(note) = scene.viscosity_note() {
+        let _ = writeln!(std::io::stderr(), "{note}");
+    }
     if let Some(note) = slow_gif_note(&args.format, args.every) {
         let _ = writeln!(std::io::stderr(), "{note}");
     }

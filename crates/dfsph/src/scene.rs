@@ -423,7 +423,37 @@ pub(crate) fn point(key: &str, p: Point) -> Result<(), SceneError> {
     finite(&format!("{key}[1]"), p[1])
 }
 
+/// Water's kinematic viscosity near 20 °C, m²/s.
+pub const WATER_KINEMATIC_VISCOSITY: f64 = 1.0e-6;
+
+/// A kinematic viscosity this many times water's gets a note ([`Scene::viscosity_note`]).
+pub const THICK_VISCOSITY_FACTOR: f64 = 100.0;
+
 impl Scene {
+    /// A note for a kinematic viscosity (`viscosity.kinematic` or `boundary_kinematic`) over
+    /// [`THICK_VISCOSITY_FACTOR`] times water's: legal (honey, a deliberately damped run),
+    /// but often water's *dynamic* viscosity, 0.001 Pa·s, typed as the kinematic one in m²/s,
+    /// which makes the water syrup-thick and the run slow (the viscous step bound). `None`
+    /// otherwise.
+    pub fn viscosity_note(&self) -> Option<String> {
+        let v = &self.viscosity;
+        let (key, value) = [
+            ("kinematic", v.kinematic),
+            ("boundary_kinematic", v.boundary_kinematic),
+        ]
+        .into_iter()
+        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+        let times = value / WATER_KINEMATIC_VISCOSITY;
+        (times > THICK_VISCOSITY_FACTOR).then(|| {
+            format!(
+                "note: viscosity.{key} is {value} m²/s, {times:.0} times water's \
+                 ({WATER_KINEMATIC_VISCOSITY:e} m²/s): the water flows like syrup and the \
+                 steps are short; water's dynamic viscosity is 0.001 Pa·s, and kinematic = \
+                 dynamic / density"
+            )
+        })
+    }
+
     /// Parse and validate a scene from JSON text. Keys that are absent take their defaults,
     /// the same for every scene whatever its shape (`Scene::default`, `SolverParams::default`).
     pub fn from_json(text: &str) -> Result<Self, SceneError> {
@@ -896,7 +926,8 @@ impl Scene {
                     "the tank reaches {far} m from the origin, {:.0} particle spacings: \
                      positions are kept in single precision, which resolves {:.1e} of a \
                      spacing there; place the tank within {MAX_SPACINGS_FROM_ORIGIN} spacings \
-                     ({} m at this particle_radius) of the origin, or use larger particles",
+                     ({} m at this particle_radius) of the origin, or use larger particles \
+                     (every length in a scene is in metres)",
                     far / d,
                     far * f64::powi(2.0, -24) / d,
                     MAX_SPACINGS_FROM_ORIGIN * d
@@ -1392,6 +1423,26 @@ pub fn builtin(name: &str) -> Option<Scene> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_viscosity_far_above_water_s_gets_a_note_naming_the_mix_up() {
+        let mut s = super::Scene::default();
+        assert_eq!(s.viscosity_note(), None);
+        s.viscosity.kinematic = 5.0e-5;
+        assert_eq!(s.viscosity_note(), None, "50 times water's: no note");
+        s.viscosity.kinematic = 0.001;
+        let note = s.viscosity_note().unwrap();
+        assert!(
+            note.starts_with("note: viscosity.kinematic is 0.001 m²/s, 1000 times water's"),
+            "{note}"
+        );
+        assert!(note.contains("dynamic viscosity is 0.001 Pa·s"), "{note}");
+        s.viscosity.boundary_kinematic = 0.01;
+        assert!(s
+            .viscosity_note()
+            .unwrap()
+            .starts_with("note: viscosity.boundary_kinematic is 0.01"));
+    }
+
     use super::*;
 
     fn err(text: &str) -> String {
