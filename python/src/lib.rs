@@ -61,8 +61,6 @@ enum ChunkEnd {
     Done(StepStats),
     /// A step did not move the clock on.
     Stuck { time: f64, dt: f64 },
-    /// The stepping thread panicked.
-    Stopped,
 }
 
 /// The solver's state and the pool its steps run in.
@@ -271,9 +269,10 @@ impl PySimulation {
                         Ok(end) => return (end, interrupted),
                         Err(mpsc::RecvTimeoutError::Timeout) => {}
                         Err(mpsc::RecvTimeoutError::Disconnected) => {
-                            // The stepping thread panicked (a solver bug); the scope re-raises
-                            // its panic when it ends.
-                            return (ChunkEnd::Stopped, interrupted);
+                            // The stepping thread panicked (a solver bug): what is returned
+                            // here is never seen, as the scope re-raises that panic when it
+                            // ends (PanicException in Python).
+                            return (ChunkEnd::More, interrupted);
                         }
                     }
                     if interrupted.is_none() {
@@ -296,9 +295,6 @@ impl PySimulation {
                         "the simulation stopped advancing at t = {time} s (a step of {dt} s)"
                     )))
                 }
-                ChunkEnd::Stopped => return Err(PyRuntimeError::new_err(
-                    "the step failed (a solver fault); the simulation is left as that step left it",
-                )),
             }
             self.let_waiters_in(py);
             // A signal that came as the chunk ended.

@@ -97,7 +97,10 @@ fn show_start_failure(error: &JsValue) {
          hardware acceleration (or WebGL) in the browser's settings, or try a current \
          Chrome, Firefox, Safari or Edge."
     );
-    let Some(document) = web_sys::window().and_then(|w| w.document()) else {
+    let Some(window) = web_sys::window() else {
+        return;
+    };
+    let Some(document) = window.document() else {
         return;
     };
     let element = document.get_element_by_id(MESSAGE_ID).or_else(|| {
@@ -109,8 +112,8 @@ fn show_start_failure(error: &JsValue) {
     if let Some(element) = element {
         element.set_text_content(Some(&text));
     }
-    if let Some(api) = web_sys::window()
-        .and_then(|w| js_sys::Reflect::get(&w, &JsValue::from_str("dfsph2d")).ok())
+    if let Some(api) = js_sys::Reflect::get(&window, &JsValue::from_str("dfsph2d"))
+        .ok()
         .filter(|api| api.is_object())
     {
         let _ = js_sys::Reflect::set(&api, &JsValue::from_str("error"), &JsValue::from_str(&text));
