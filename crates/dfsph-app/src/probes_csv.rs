@@ -41,7 +41,7 @@ impl ProbesCsvWriter {
 
     /// Append one row: the simulation's time and every probe's reading now.
     pub fn push(&mut self, sim: &Simulation) -> Result<()> {
-        let mut row = sim.time().to_string();
+        let mut row = dfsph_io::numbers::seconds(sim.time()).to_string();
         for v in probes::sample_all(sim) {
             row.push(',');
             row.push_str(&v.to_string());

@@ -878,3 +878,45 @@ fn a_run_that_blows_up_without_nan_warns_and_exits_2_unless_allowed() {
         assert!(out_dir.join("particles/00004.csv").is_file());
     }
 }
+
+/// Times are written as the decimals the steps stand for: a hundred 1 ms steps end at
+/// `0.1`, not at `0.10000000474974513` (the single-precision 1 ms, summed), in `index.csv`,
+/// the `.pvd` collection and `stats.csv`, whose `dt` reads `0.001`.
+#[test]
+fn output_times_read_as_the_steps_decimals() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("still.json");
+    // Water at rest: the CFL bound is far above the 1 ms cap, so every step is 1 ms.
+    std::fs::write(
+        &scene,
+        r#"{"particle_radius": 0.025, "tank": {"min": [0, 0], "max": [1, 1]},
+            "fluid": [{"min": [0, 0], "max": [1, 0.5]}], "time_step": {"max": 0.001}}"#,
+    )
+    .unwrap();
+    let out_dir = dir.path().join("out");
+    let out = dfsph2d(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--until",
+        "0.3",
+        "--every",
+        "0.1",
+        "--format",
+        "csv,vtk",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let index = std::fs::read_to_string(out_dir.join("particles/index.csv")).unwrap();
+    let times: Vec<&str> = index
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap())
+        .collect();
+    assert_eq!(times, ["0", "0.1", "0.2", "0.3"], "{index}");
+    let pvd = std::fs::read_to_string(out_dir.join("particles/particles.pvd")).unwrap();
+    assert!(pvd.contains(r#"timestep="0.2""#), "{pvd}");
+    let stats = std::fs::read_to_string(out_dir.join("stats.csv")).unwrap();
+    let last: Vec<&str> = stats.lines().last().unwrap().split(',').collect();
+    assert_eq!(&last[..3], ["300", "0.3", "0.001"], "{stats}");
+}

@@ -10,6 +10,7 @@ use dfsph::rigid::RigidBodyState;
 use dfsph::Snapshot;
 
 use crate::atomic::write_atomic;
+use crate::numbers::seconds;
 
 /// Header of a particle snapshot CSV.
 pub const SNAPSHOT_HEADER: &str = "x,y,vx,vy,density,pressure";
@@ -32,8 +33,14 @@ pub fn bodies_csv_rows(frame: u32, time: f64, bodies: &[RigidBodyState]) -> Stri
         .enumerate()
         .map(|(k, b)| {
             format!(
-                "{frame},{time},{k},{},{},{},{},{},{}",
-                b.position.x, b.position.y, b.angle, b.velocity.x, b.velocity.y, b.angular_velocity
+                "{frame},{},{k},{},{},{},{},{},{}",
+                seconds(time),
+                b.position.x,
+                b.position.y,
+                b.angle,
+                b.velocity.x,
+                b.velocity.y,
+                b.angular_velocity
             )
         })
         .collect();
@@ -71,7 +78,7 @@ pub struct FrameRecord {
 
 /// One row of the frame index (without the newline): `frame,time,file`.
 pub fn frame_index_row(f: &FrameRecord) -> String {
-    format!("{},{},{}", f.frame, f.time, f.file)
+    format!("{},{},{}", f.frame, seconds(f.time), f.file)
 }
 
 /// Write the frame index at once: [`INDEX_HEADER`], then one row per frame. (`dfsph2d run`

@@ -16,6 +16,9 @@
 //! - [`video`]: those frames, stamped with their simulated time, as an animated GIF (pure
 //!   Rust) or an MP4 (through `ffmpeg`), playing at simulated speed.
 //!
+//! - [`numbers`]: how times and statistics are written (no digits beyond what the solver's
+//!   single precision and the clock's sums resolve).
+//!
 //! - [`input`]: the scene a SCENE argument names (a built-in name or a JSON file), files read
 //!   with a size limit, and the checks on output paths, with one-line messages.
 //!
@@ -30,6 +33,7 @@ pub mod colormap;
 pub mod csv;
 mod font;
 pub mod input;
+pub mod numbers;
 pub mod render;
 pub mod stats;
 pub mod video;

@@ -7,6 +7,7 @@ use anyhow::Result;
 use dfsph::StepStats;
 
 use crate::append::{AppendFile, Sink};
+use crate::numbers::{seconds, single};
 
 /// Header of `stats.csv`. The first ten columns are the stable contract (DESIGN.md); the
 /// rest follow in this order.
@@ -41,19 +42,19 @@ impl<W: Sink> StatsCsvWriter<W> {
         self.file.append(&format!(
             "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             s.step,
-            s.time,
-            s.dt,
+            seconds(s.time),
+            seconds(s.dt),
             s.n_fluid,
             s.density_iterations,
             s.divergence_iterations,
-            s.avg_density_error_pct,
-            s.max_density_error_pct,
-            s.max_speed,
-            s.kinetic_energy,
-            s.divergence_error_pct,
+            single(s.avg_density_error_pct),
+            single(s.max_density_error_pct),
+            single(s.max_speed),
+            single(s.kinetic_energy),
+            single(s.divergence_error_pct),
             s.clamped,
             s.non_finite,
-            s.avg_neighbors,
+            single(s.avg_neighbors),
             s.n_boundary,
             s.retries,
         ))?;

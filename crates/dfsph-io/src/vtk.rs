@@ -294,7 +294,8 @@ pub fn write_pvd(path: impl AsRef<Path>, frames: &[(f64, String)]) -> Result<()>
         for (time, file) in frames {
             writeln!(
                 w,
-                r#"    <DataSet timestep="{time}" group="" part="0" file="{}"/>"#,
+                r#"    <DataSet timestep="{}" group="" part="0" file="{}"/>"#,
+                crate::numbers::seconds(*time),
                 xml_escape(file)
             )?;
         }
