@@ -500,7 +500,18 @@ fn median_row(mut runs: Vec<Row>) -> Row {
     row
 }
 
-/// The benchmark table, then the peer ratios.
+/// What the table's columns are, printed under it.
+const TABLE_LEGEND: &str = "\
+thr: worker threads; n: fluid particles; sim s: simulated seconds; wall s: wall seconds of the
+  stepping (set-up excluded; the median of the runs); rt x: simulated seconds per wall second
+  (1 = real time); steps: time steps; mean dt: mean step, s; dens, div: mean iterations a step
+  of the density and divergence solves; p-steps/s: particle steps per wall second; ns/p-st:
+  nanoseconds per particle step; peak MiB: peak resident memory; B/p: bytes per particle;
+  front: surge front at the end, m from the left wall; fr@0.4: the front at t = 0.4 s (about
+  2.0 m for the dam break)
+";
+
+/// The benchmark table and its legend, then the peer ratios.
 pub fn table(rows: &[Row]) -> String {
     use std::fmt::Write;
     let mut s = String::new();
@@ -543,6 +554,7 @@ pub fn table(rows: &[Row]) -> String {
             runs
         );
     }
+    s.push_str(TABLE_LEGEND);
     for ours in rows.iter().filter(|r| r.code == Code::Dfsph2d) {
         for peer in rows
             .iter()

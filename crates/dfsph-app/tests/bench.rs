@@ -203,6 +203,12 @@ fn realtime_bench_runs_the_viewer_settings_on_two_threads() {
         stdout.contains("rt x") && stdout.contains("(viewer settings)"),
         "{stdout}"
     );
+    // Under the table, what its terse column names mean.
+    assert!(
+        stdout.contains("rt x: simulated seconds per wall second")
+            && stdout.contains("fr@0.4: the front at t = 0.4 s"),
+        "{stdout}"
+    );
     let rows: Vec<serde_json::Value> =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(rows.len(), 1, "{rows:?}");
