@@ -418,7 +418,7 @@ impl PySimulation {
             )));
         }
         let until = self.lock(py).sim.time() + seconds;
-        self.step_while(py, |sim| sim.time() < until)
+        self.step_while(py, |sim| !sim.has_reached(until))
     }
 
     /// Simulated time, s.

@@ -1265,6 +1265,14 @@ impl Simulation {
         self.step_count
     }
 
+    /// Whether the clock has reached `target` (s): whether the last step ended at `target`
+    /// or past it, give or take 1 % of that step. The clock is a sum of steps in double
+    /// precision, so a hundred steps of 0.001 may end at 0.09999999999999999; without the
+    /// slack a loop `while time < 0.1` would take a 101st step.
+    pub fn has_reached(&self, target: f64) -> bool {
+        self.time + 0.01 * self.stats.dt >= target
+    }
+
     /// Diagnostics of the last step (before the first: the particle counts, the rest zero).
     pub fn stats(&self) -> &StepStats {
         &self.stats

@@ -755,3 +755,35 @@ fn the_stop_flag_ends_the_density_solve_of_either_kind() {
         stop.store(false, Ordering::Relaxed);
     }
 }
+
+/// The clock counts 1 ms steps as 0.001 s each (not the single-precision step's
+/// 0.0010000000474974513), and `has_reached` ends a loop after exactly the steps that
+/// reach a target, however the double-precision sum rounds.
+#[test]
+fn the_clock_counts_the_steps_decimals_and_reaches_targets_on_time() {
+    // Water at rest: every step is the 1 ms cap.
+    let s = Scene::from_json(
+        r#"{"particle_radius": 0.025, "tank": {"min": [0, 0], "max": [1, 1]},
+            "fluid": [{"min": [0, 0], "max": [1, 0.5]}], "time_step": {"max": 0.001}}"#,
+    )
+    .unwrap();
+    let mut sim = Simulation::new(&s).unwrap();
+    for target in [0.1, 0.2, 1.5] {
+        let before = sim.step_count();
+        while !sim.has_reached(target) {
+            sim.step();
+        }
+        assert_eq!(sim.stats().dt, 0.001);
+        assert!(
+            (sim.time() - target).abs() < 1e-12,
+            "{} at {target}",
+            sim.time()
+        );
+        assert_eq!(
+            sim.step_count(),
+            (target * 1000.0).round() as u64,
+            "after {before} steps, t = {}",
+            sim.time()
+        );
+    }
+}

@@ -90,7 +90,7 @@ fn run_dfsph(args: &RowArgs) -> Result<Row, String> {
     let mut front_at_check = None;
     let mut untimed = Duration::ZERO;
     let start = Instant::now();
-    while sim.time() < args.until - 1.0e-9 {
+    while !sim.has_reached(args.until) {
         let s = sim.step();
         density_its += s.density_iterations as u64;
         divergence_its += s.divergence_iterations as u64;

@@ -254,7 +254,7 @@ pub fn simulate(
             non_finite: 0,
         },
     };
-    while sim.time() < until - 1e-12 {
+    while !sim.has_reached(until) {
         let s = *sim.step();
         trace.t.push(s.time);
         trace.stats.push(s);
