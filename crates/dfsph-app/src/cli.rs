@@ -208,6 +208,13 @@ pub struct RunArgs {
           value_parser = clap::value_parser!(u32).range(64..=16384))]
     pub png_width: u32,
 
+    /// What colours the water in PNG frames and videos: speed (m/s), pressure (Pa) or
+    /// density (the density error, ±1 % of ρ0), as the viewer's `c` key cycles them. Each
+    /// scale is fixed for the whole run (speed: a fall from the tank's top; pressure: the
+    /// hydrostatic pressure at the bottom of the deepest water).
+    #[arg(long, value_name = "FIELD", default_value = "speed", value_parser = color_by)]
+    pub color_by: dfsph_io::render::FrameField,
+
     /// Exit 0 even when the run blew up without NaN: the water's energy rose by more than
     /// 2 % of M·g·H without an action, or the density solve ended at its iteration cap 20
     /// steps in a row. Without it such a run still writes everything, warns when it
@@ -321,6 +328,17 @@ fn non_negative_seconds(text: &str) -> Result<f64, String> {
             "must be a finite number of seconds, 0 or more, got {text}"
         ))
     }
+}
+
+/// `--color-by`: one of the names of [`dfsph_io::render::FrameField::NAMES`].
+fn color_by(name: &str) -> Result<dfsph_io::render::FrameField, String> {
+    dfsph_io::render::FrameField::from_name(name).ok_or_else(|| {
+        let names: Vec<&str> = dfsph_io::render::FrameField::NAMES
+            .iter()
+            .map(|(n, _)| *n)
+            .collect();
+        format!("{name:?} is not a field; one of {}", names.join(", "))
+    })
 }
 
 #[cfg(test)]

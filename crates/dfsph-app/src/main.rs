@@ -264,6 +264,7 @@ fn run(args: RunArgs) -> Result<(), Failure> {
         formats: args.format,
         out: args.out,
         png_width: args.png_width,
+        color_by: args.color_by,
     };
     // A failed write (a full disk) stops the run with one line naming the file; what was
     // completed stays (docs: `stats.csv` has every completed step).

@@ -358,6 +358,7 @@ impl FrameWriter {
         formats: &[Format],
         scene: &Scene,
         png_width: u32,
+        color_by: dfsph_io::render::FrameField,
         every: f64,
         manifest: &mut Manifest,
     ) -> Result<Self> {
@@ -367,7 +368,7 @@ impl FrameWriter {
         let pictures = formats.iter().any(|f| f.is_picture());
         let gif = if formats.contains(&Format::Gif) {
             manifest.record(GIF_FILE)?;
-            Some(dfsph_io::video::GifWriter::new(out.join(GIF_FILE)))
+            Some(dfsph_io::video::GifWriter::new(out.join(GIF_FILE)).for_field(color_by))
         } else {
             None
         };
@@ -411,7 +412,8 @@ impl FrameWriter {
             body_files: Vec::new(),
             png: RenderOptions {
                 width: png_width,
-                speed_max: dfsph_io::render::speed_scale(scene),
+                field: color_by,
+                scale_max: dfsph_io::render::field_scale(scene, color_by),
             },
             last_step: None,
         })
@@ -619,9 +621,16 @@ mod tests {
         let mut scene = dfsph::scene::builtin("dam-break").unwrap();
         scene.particle_radius = 0.05;
         let mut sim = Simulation::new(&scene).unwrap();
-        let mut frames =
-            FrameWriter::create(dir.path(), &[Format::Vtk], &scene, 320, 0.05, &mut manifest)
-                .unwrap();
+        let mut frames = FrameWriter::create(
+            dir.path(),
+            &[Format::Vtk],
+            &scene,
+            320,
+            Default::default(),
+            0.05,
+            &mut manifest,
+        )
+        .unwrap();
         frames.write(&sim, &mut manifest).unwrap();
         sim.step();
         frames.write(&sim, &mut manifest).unwrap(); // walls unchanged: no new file
@@ -667,9 +676,16 @@ mod tests {
         let mut scene = dfsph::scene::builtin("dam-break").unwrap();
         scene.particle_radius = 0.05;
         let mut sim = Simulation::new(&scene).unwrap();
-        let mut frames =
-            FrameWriter::create(dir.path(), &[Format::Vtk], &scene, 320, 0.05, &mut manifest)
-                .unwrap();
+        let mut frames = FrameWriter::create(
+            dir.path(),
+            &[Format::Vtk],
+            &scene,
+            320,
+            Default::default(),
+            0.05,
+            &mut manifest,
+        )
+        .unwrap();
         frames.write(&sim, &mut manifest).unwrap();
         sim.step();
         frames.write(&sim, &mut manifest).unwrap();

@@ -26,6 +26,8 @@ pub struct RunPlan {
     pub formats: Vec<Format>,
     pub out: PathBuf,
     pub png_width: u32,
+    /// The field PNG frames and videos colour the water by.
+    pub color_by: dfsph_io::render::FrameField,
 }
 
 /// What happened.
@@ -147,6 +149,7 @@ pub fn execute_with(
         &plan.formats,
         &plan.scene,
         plan.png_width,
+        plan.color_by,
         plan.every,
         &mut manifest,
     )?;

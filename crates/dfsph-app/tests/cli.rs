@@ -920,3 +920,49 @@ fn output_times_read_as_the_steps_decimals() {
     let last: Vec<&str> = stats.lines().last().unwrap().split(',').collect();
     assert_eq!(&last[..3], ["300", "0.3", "0.001"], "{stats}");
 }
+
+/// `--color-by` colours the frames by another field (the legend's colour bar changes with
+/// it: blue to red for the density error), and an unknown field is a usage error that
+/// lists the known ones.
+#[test]
+fn frames_are_coloured_by_the_field_asked_for() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = write_scene(tmp.path(), "coarse.json", COARSE.as_bytes());
+    let frame = |field: &str| -> Vec<u8> {
+        let out_dir = tmp.path().join(field);
+        let out = dfsph2d(&[
+            "run",
+            scene.to_str().unwrap(),
+            "--until",
+            "0.02",
+            "--format",
+            "png",
+            "--color-by",
+            field,
+            "--out",
+            out_dir.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        std::fs::read(out_dir.join("particles/00001.png")).unwrap()
+    };
+    let (speed, pressure, density) = (frame("speed"), frame("pressure"), frame("density"));
+    assert_ne!(speed, pressure);
+    assert_ne!(speed, density);
+    assert_ne!(pressure, density);
+
+    let out = dfsph2d(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--color-by",
+        "temperature",
+        "--out",
+        tmp.path().join("bad").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.contains("\"temperature\" is not a field; one of speed, pressure, density"),
+        "{stderr}"
+    );
+    assert!(!tmp.path().join("bad").exists());
+}

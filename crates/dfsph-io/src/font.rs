@@ -1,6 +1,6 @@
 //! A tiny bitmap font (5 pixels high) for the PNG legend's labels and the videos' time stamps:
-//! digits, `.`, `-`, `+`, `e`, `m`, `/`, `s`, `t`, `=` and space. Enough for "0", "6.3 m/s"
-//! and "t = 0.350 s" without shipping a font file.
+//! digits, `.`, `-`, `+`, `e`, `m`, `/`, `s`, `t`, `=`, `P`, `a`, `k`, `%` and space. Enough
+//! for "0", "6.3 m/s", "4.9 kPa", "+1 %" and "t = 0.350 s" without shipping a font file.
 
 use tiny_skia::{Color, Paint, Pixmap, Rect, Transform};
 
@@ -26,6 +26,10 @@ fn glyph(c: char) -> Option<(u8, [u8; 5])> {
         '/' => (3, [0b001, 0b001, 0b010, 0b100, 0b100]),
         't' => (3, [0b010, 0b111, 0b010, 0b010, 0b011]),
         '=' => (3, [0, 0b111, 0, 0b111, 0]),
+        'P' => (3, [0b110, 0b101, 0b110, 0b100, 0b100]),
+        'a' => (3, [0, 0b011, 0b101, 0b101, 0b011]),
+        'k' => (3, [0b100, 0b101, 0b110, 0b101, 0b101]),
+        '%' => (5, [0b11001, 0b11010, 0b00100, 0b01011, 0b10011]),
         ' ' => (2, [0; 5]),
         _ => return None,
     })

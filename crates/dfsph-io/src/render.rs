@@ -44,6 +44,8 @@ pub struct RenderGeometry<'a> {
     pub boundary: Cow<'a, [Vec2]>,
     /// Particle radius, m (fluid and wall particles are drawn this size).
     pub particle_radius: f32,
+    /// Rest density ρ0, kg/m³ (the density error's reference).
+    pub rest_density: f32,
     /// The rigid bodies, each drawn as its outline filled with [`body_fill`] of its mean
     /// density, edged with [`BODY_EDGE`] (a circle also with a radius, so its spin shows).
     pub bodies: Vec<RigidBodyState>,
@@ -60,6 +62,7 @@ impl<'a> RenderGeometry<'a> {
             tank_max,
             boundary: wall_positions(sim),
             particle_radius: sim.particle_radius(),
+            rest_density: sim.rest_density(),
             bodies: sim.rigid_bodies(),
         }
     }
@@ -72,6 +75,7 @@ impl<'a> RenderGeometry<'a> {
             tank_max: self.tank_max,
             boundary: Cow::Owned(self.boundary.into_owned()),
             particle_radius: self.particle_radius,
+            rest_density: self.rest_density,
             bodies: self.bodies,
         }
     }
@@ -97,21 +101,54 @@ pub fn wall_positions(sim: &Simulation) -> Cow<'_, [Vec2]> {
     )
 }
 
+/// The field the water is coloured by (the viewer's colourings).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FrameField {
+    /// Speed |v|, m/s, from 0 (viridis).
+    #[default]
+    Speed,
+    /// Pressure, Pa (the snapshot's pressure field), from 0 (viridis).
+    Pressure,
+    /// Density error 100·(ρ/ρ0 − 1), %, symmetric about 0 (blue, white, red).
+    DensityError,
+}
+
+impl FrameField {
+    /// Every field, by the name `--color-by` takes.
+    pub const NAMES: [(&'static str, FrameField); 3] = [
+        ("speed", FrameField::Speed),
+        ("pressure", FrameField::Pressure),
+        ("density", FrameField::DensityError),
+    ];
+
+    /// The field named `name` (`speed`, `pressure`, `density`).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::NAMES
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|&(_, f)| f)
+    }
+}
+
 /// How to draw.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderOptions {
     /// Image width in pixels (clamped to [`MIN_WIDTH`], [`MAX_SIDE`]).
     pub width: u32,
-    /// Speed, m/s, at the top of the colour scale. `None`: the frame's largest speed. Give a
-    /// fixed value to keep colours comparable between frames.
-    pub speed_max: Option<f32>,
+    /// The field the water is coloured by.
+    pub field: FrameField,
+    /// Top of the colour scale in the field's unit (for the density error, the scale runs
+    /// from minus this to this). `None`: the frame's largest value. Give a fixed value to
+    /// keep colours comparable between frames ([`field_scale`]).
+    pub scale_max: Option<f32>,
 }
 
 impl Default for RenderOptions {
     fn default() -> Self {
         Self {
             width: 800,
-            speed_max: None,
+            field: FrameField::Speed,
+            scale_max: None,
         }
     }
 }
@@ -208,25 +245,42 @@ pub fn render_frame(
     }
     fill(&mut pixmap, walls, [WALL_GREY; 3]);
 
-    // Fluid, coloured by speed.
-    let speeds: Vec<f32> = (0..snapshot.position.len())
-        .map(|i| snapshot.velocity.get(i).map_or(0.0, |v| v.length()))
-        .collect();
-    let top_speed = match options.speed_max {
+    // Fluid, coloured by the field.
+    let n = snapshot.position.len();
+    let values: Vec<f32> = match options.field {
+        FrameField::Speed => (0..n)
+            .map(|i| snapshot.velocity.get(i).map_or(0.0, |v| v.length()))
+            .collect(),
+        FrameField::Pressure => (0..n)
+            .map(|i| snapshot.pressure.get(i).copied().unwrap_or(0.0))
+            .collect(),
+        FrameField::DensityError => {
+            let rho0 = geometry.rest_density;
+            (0..n)
+                .map(|i| {
+                    snapshot
+                        .density
+                        .get(i)
+                        .map_or(0.0, |&rho| 100.0 * (rho / rho0 - 1.0))
+                })
+                .collect()
+        }
+    };
+    let top = match options.scale_max {
         Some(s) if s.is_finite() && s > 0.0 => s,
-        _ => speeds
+        _ => values
             .iter()
-            .copied()
-            .filter(|s| s.is_finite())
+            .map(|v| v.abs())
+            .filter(|v| v.is_finite())
             .fold(0.0, f32::max),
     };
-    let top_speed = if top_speed > 0.0 { top_speed } else { 1.0 };
+    let top = if top > 0.0 { top } else { 1.0 };
     let mut buckets: Vec<Option<PathBuilder>> = (0..BUCKETS).map(|_| None).collect();
-    for (&p, &speed) in snapshot.position.iter().zip(&speeds) {
+    for (&p, &value) in snapshot.position.iter().zip(&values) {
         if !p.is_finite() {
             continue;
         }
-        let t = speed / top_speed;
+        let t = scale_position(options.field, value, top);
         let k = ((if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) }) * (BUCKETS - 1) as f32).round()
             as usize;
         let (x, y) = view.map(p);
@@ -236,7 +290,11 @@ pub fn render_frame(
     }
     for (k, path) in buckets.into_iter().enumerate() {
         if let Some(path) = path {
-            fill(&mut pixmap, path, viridis(k as f32 / (BUCKETS - 1) as f32));
+            fill(
+                &mut pixmap,
+                path,
+                field_colour(options.field, k as f32 / (BUCKETS - 1) as f32),
+            );
         }
     }
 
@@ -247,7 +305,7 @@ pub fn render_frame(
         draw_body(&mut pixmap, &view, body, edge_px);
     }
 
-    draw_legend(&mut pixmap, band, top_speed);
+    draw_legend(&mut pixmap, band, options.field, top);
     Ok(pixmap)
 }
 
@@ -347,6 +405,57 @@ pub fn speed_scale(scene: &dfsph::Scene) -> Option<f32> {
     (v.is_finite() && v > 0.0).then_some(v as f32)
 }
 
+/// A fixed top of `field`'s colour scale for a whole run of `scene` (see
+/// [`RenderOptions::scale_max`]): the speed of [`speed_scale`]; the hydrostatic pressure
+/// ρ0·|g|·D at the bottom of the deepest water the scene starts with; ±1 % of ρ0 for the
+/// density error (the solver's tolerances are a few hundredths of a percent: a converged
+/// solve stays white).
+pub fn field_scale(scene: &dfsph::Scene, field: FrameField) -> Option<f32> {
+    match field {
+        FrameField::Speed => speed_scale(scene),
+        FrameField::Pressure => {
+            let g = scene.gravity[0].hypot(scene.gravity[1]);
+            let depth = scene
+                .fluid
+                .iter()
+                .map(|b| b.max[1] - scene.tank.min[1])
+                .fold(0.0, f64::max);
+            let p = scene.rest_density * g * depth;
+            (p.is_finite() && p > 0.0).then_some(p as f32)
+        }
+        FrameField::DensityError => Some(1.0),
+    }
+}
+
+/// Where `value` sits on the colour scale, 0 to 1: from 0 to `top`, or for the density
+/// error from `-top` (0) through 0 (0.5) to `top` (1).
+fn scale_position(field: FrameField, value: f32, top: f32) -> f32 {
+    match field {
+        FrameField::DensityError => 0.5 + 0.5 * value / top,
+        _ => value / top,
+    }
+}
+
+/// The colour at `t` (0 to 1) of `field`'s scale: viridis, or for the density error blue
+/// through white to red.
+pub(crate) fn field_colour(field: FrameField, t: f32) -> [u8; 3] {
+    match field {
+        FrameField::DensityError => {
+            const BLUE: [f32; 3] = [59.0, 76.0, 192.0];
+            const WHITE: [f32; 3] = [242.0, 242.0, 242.0];
+            const RED: [f32; 3] = [180.0, 4.0, 38.0];
+            let t = t.clamp(0.0, 1.0);
+            let (a, b, s) = if t < 0.5 {
+                (BLUE, WHITE, 2.0 * t)
+            } else {
+                (WHITE, RED, 2.0 * t - 1.0)
+            };
+            [0, 1, 2].map(|k| (a[k] + (b[k] - a[k]) * s).round() as u8)
+        }
+        _ => viridis(t),
+    }
+}
+
 fn fill(pixmap: &mut Pixmap, path: PathBuilder, rgb: [u8; 3]) {
     if let Some(path) = path.finish() {
         let mut paint = Paint {
@@ -364,17 +473,30 @@ fn fill(pixmap: &mut Pixmap, path: PathBuilder, rgb: [u8; 3]) {
     }
 }
 
-/// `0 [colour bar] 6.3 m/s` in the band at the top of the image.
-fn draw_legend(pixmap: &mut Pixmap, band: u32, top_speed: f32) {
+/// `0 [colour bar] 6.3 m/s` in the band at the top of the image (pressure: `0 [bar] 4.9 kPa`;
+/// density error: `-1 % [bar] +1 %`).
+fn draw_legend(pixmap: &mut Pixmap, band: u32, field: FrameField, top: f32) {
     let text_scale = (band / 10).max(1);
     let text_h = font::text_height(text_scale) as f32;
     let margin = (band / 4) as f32;
     let y_text = 0.5 * (band as f32 - text_h);
     let grey = Color::from_rgba8(TEXT_GREY, TEXT_GREY, TEXT_GREY, 255);
+    let (low, high) = match field {
+        FrameField::Speed => ("0".to_string(), format!("{} m/s", speed_label(top))),
+        FrameField::Pressure if top >= 1000.0 => (
+            "0".to_string(),
+            format!("{} kPa", speed_label(top / 1000.0)),
+        ),
+        FrameField::Pressure => ("0".to_string(), format!("{} Pa", speed_label(top))),
+        FrameField::DensityError => (
+            format!("-{} %", speed_label(top)),
+            format!("+{} %", speed_label(top)),
+        ),
+    };
 
     let mut x = margin;
-    font::draw_text(pixmap, x, y_text, text_scale, "0", grey);
-    x += (font::text_width("0", text_scale) as f32 + margin * 0.5).round();
+    font::draw_text(pixmap, x, y_text, text_scale, &low, grey);
+    x += (font::text_width(&low, text_scale) as f32 + margin * 0.5).round();
 
     let bar_w = (0.25 * pixmap.width() as f32).round().max(16.0);
     let bar_h = (band as f32 * 0.5).round().max(4.0);
@@ -385,21 +507,14 @@ fn draw_legend(pixmap: &mut Pixmap, band: u32, top_speed: f32) {
         ..Paint::default()
     };
     for k in 0..steps {
-        let c = viridis(k as f32 / (steps - 1).max(1) as f32);
+        let c = field_colour(field, k as f32 / (steps - 1).max(1) as f32);
         paint.set_color_rgba8(c[0], c[1], c[2], 255);
         if let Some(rect) = Rect::from_xywh(x + k as f32, bar_y, 1.0, bar_h) {
             pixmap.fill_rect(rect, &paint, Transform::identity(), None);
         }
     }
     x += bar_w + margin * 0.5;
-    font::draw_text(
-        pixmap,
-        x,
-        y_text,
-        text_scale,
-        &format!("{} m/s", speed_label(top_speed)),
-        grey,
-    );
+    font::draw_text(pixmap, x, y_text, text_scale, &high, grey);
 }
 
 /// A speed with two or three significant digits.
@@ -477,6 +592,7 @@ mod tests {
     fn png_decodes_with_water_coloured_by_speed() {
         let (walls, snap) = scene();
         let geometry = RenderGeometry {
+            rest_density: 1000.0,
             tank_min: Vec2::ZERO,
             tank_max: Vec2::ONE,
             boundary: Cow::Borrowed(&walls[..]),
@@ -487,7 +603,8 @@ mod tests {
         let path = dir.path().join("00000.png");
         let options = RenderOptions {
             width: 400,
-            speed_max: Some(2.0),
+            field: FrameField::Speed,
+            scale_max: Some(2.0),
         };
         write_png(&path, &geometry, &snap, &options).unwrap();
 
@@ -529,11 +646,98 @@ mod tests {
         assert!(row.iter().any(|c| *c == viridis(1.0)));
     }
 
+    /// The same block coloured by pressure (the left half at 2,000 Pa, the right at 0) and by
+    /// density error (the left half 1 % compressed, the right 1 % light, one column at ρ0).
+    #[test]
+    fn water_is_coloured_by_pressure_or_density_error() {
+        let (walls, mut snap) = scene();
+        for (k, p) in snap.position.iter().enumerate() {
+            let left = p.x < 0.2;
+            snap.pressure[k] = if left { 2000.0 } else { 0.0 };
+            snap.density[k] = if left { 1010.0 } else { 990.0 };
+            if (p.x - 0.21).abs() < 0.005 {
+                snap.density[k] = 1000.0;
+            }
+        }
+        let geometry = RenderGeometry {
+            rest_density: 1000.0,
+            tank_min: Vec2::ZERO,
+            tank_max: Vec2::ONE,
+            boundary: Cow::Borrowed(&walls[..]),
+            bodies: Vec::new(),
+            particle_radius: 0.01,
+        };
+        let band = 400 / 20;
+        let view_lo = -0.02 - 0.01 - 0.02 * 1.04;
+        let span = 1.04 + 2.0 * (0.01 + 0.02 * 1.04);
+        let s = 400.0 / span;
+        // The colours drawn inside a world rectangle.
+        let colours = |img: &Pixmap, x0: f32, x1: f32| -> Vec<[u8; 3]> {
+            let px = |x: f32| ((x - view_lo) * s) as u32;
+            let py = |y: f32| (band as f32 + (1.0 + 0.02 + 0.01 + 0.02 * 1.04 - y) * s) as u32;
+            let mut out = Vec::new();
+            for y in py(0.15)..py(0.05) {
+                for x in px(x0)..px(x1) {
+                    out.push(pixel(img, x, y));
+                }
+            }
+            out
+        };
+        let draw = |field, scale_max| {
+            let options = RenderOptions {
+                width: 400,
+                field,
+                scale_max,
+            };
+            render_frame(&geometry, &snap, &options).unwrap()
+        };
+        let pressure = draw(FrameField::Pressure, Some(2000.0));
+        assert!(colours(&pressure, 0.03, 0.17).contains(&viridis(1.0)));
+        assert!(!colours(&pressure, 0.03, 0.17).contains(&viridis(0.0)));
+        assert!(colours(&pressure, 0.25, 0.38).contains(&viridis(0.0)));
+        let density = draw(FrameField::DensityError, Some(1.0));
+        let red = field_colour(FrameField::DensityError, 1.0);
+        let blue = field_colour(FrameField::DensityError, 0.0);
+        // ρ0 is the middle bucket of the scale.
+        let middle = ((BUCKETS - 1) as f32 * 0.5).round() / (BUCKETS - 1) as f32;
+        let white = field_colour(FrameField::DensityError, middle);
+        assert!(red[0] > 150 && red[1] < 60, "{red:?}");
+        assert!(blue[2] > 150 && blue[0] < 100, "{blue:?}");
+        assert!(white.iter().all(|&c| c > 230), "{white:?}");
+        assert!(colours(&density, 0.03, 0.17).contains(&red));
+        assert!(colours(&density, 0.25, 0.38).contains(&blue));
+        assert!(colours(&density, 0.19, 0.23).contains(&white));
+        assert!(!colours(&density, 0.03, 0.17).contains(&blue));
+        // Unscaled, the density error's scale is its largest magnitude, symmetric about 0.
+        let auto = draw(FrameField::DensityError, None);
+        assert!(colours(&auto, 0.03, 0.17).contains(&red));
+    }
+
+    #[test]
+    fn field_names_and_scene_scales() {
+        assert_eq!(
+            FrameField::from_name("pressure"),
+            Some(FrameField::Pressure)
+        );
+        assert_eq!(
+            FrameField::from_name("density"),
+            Some(FrameField::DensityError)
+        );
+        assert_eq!(FrameField::from_name("temperature"), None);
+        let s = dfsph::scene::builtin("dam-break").unwrap();
+        // The 2 m column: ρ0·g·H at its bottom.
+        let p = field_scale(&s, FrameField::Pressure).unwrap();
+        assert!((p - 1000.0 * 9.81 * 2.0).abs() < 1.0, "{p}");
+        assert_eq!(field_scale(&s, FrameField::DensityError), Some(1.0));
+        assert_eq!(field_scale(&s, FrameField::Speed), speed_scale(&s));
+    }
+
     #[test]
     fn width_is_kept_and_aspect_follows_the_tank() {
         let walls = [];
         let snap = Snapshot::default();
         let geometry = RenderGeometry {
+            rest_density: 1000.0,
             tank_min: Vec2::ZERO,
             tank_max: Vec2::new(4.0, 1.0),
             boundary: Cow::Borrowed(&walls[..]),
@@ -545,7 +749,8 @@ mod tests {
             &snap,
             &RenderOptions {
                 width: 800,
-                speed_max: None,
+                field: FrameField::Speed,
+                scale_max: None,
             },
         )
         .unwrap();
@@ -567,6 +772,7 @@ mod tests {
             ..Snapshot::default()
         };
         let geometry = RenderGeometry {
+            rest_density: 1000.0,
             tank_min: Vec2::ZERO,
             tank_max: Vec2::ONE,
             boundary: Cow::Borrowed(&walls[..]),
@@ -592,6 +798,7 @@ mod tests {
         let walls = [];
         let snap = Snapshot::default();
         let geometry = RenderGeometry {
+            rest_density: 1000.0,
             tank_min: Vec2::ZERO,
             tank_max: Vec2::new(2.0, 1.0),
             boundary: Cow::Borrowed(&walls[..]),
@@ -678,7 +885,8 @@ mod tests {
 
         let options = RenderOptions {
             width: 800,
-            speed_max: None,
+            field: FrameField::Speed,
+            scale_max: None,
         };
         let view = layout(&geometry, options.width).unwrap().view;
         let img = render_frame(&geometry, &sim.snapshot(), &options).unwrap();

@@ -22,7 +22,8 @@ use anyhow::{anyhow, Context, Result};
 use tiny_skia::Pixmap;
 
 use crate::atomic::{tmp_path, AtomicFile};
-use crate::colormap::{body_ramp, viridis, BODY_EDGE};
+use crate::colormap::{body_ramp, BODY_EDGE};
+use crate::render::{field_colour, FrameField};
 
 /// Shortest GIF frame delay, 1/100 s: browsers and most viewers replace 0 and 1 with 10.
 pub const GIF_MIN_DELAY_CS: u64 = 2;
@@ -92,17 +93,18 @@ fn to_rgb(pixmap: &Pixmap, width: u32, height: u32, out: &mut Vec<u8>) {
     }
 }
 
-/// The GIF's one palette, shared by every frame: 200 steps of viridis (the fluid's colours),
+/// The GIF's one palette, shared by every frame: 200 steps of the field's colour scale
+/// (viridis for speed and pressure, blue–white–red for the density error: the fluid's colours),
 /// 24 steps of the rigid bodies' fills and their edge colour, and 31 greys (background,
 /// walls, text, and their anti-aliased edges). The renderer draws from these colours only,
 /// so a fixed palette keeps them stable from frame to frame, where a per-frame quantiser
 /// would make the colour of still water flicker. (A body's fill is the nearest of the 24:
 /// at most about 3 levels off in each channel.)
-fn palette() -> Vec<[u8; 3]> {
-    const VIRIDIS_STEPS: usize = 200;
+fn palette(field: FrameField) -> Vec<[u8; 3]> {
+    const FLUID_STEPS: usize = 200;
     const BODY_STEPS: usize = 24;
-    let mut colors: Vec<[u8; 3]> = (0..VIRIDIS_STEPS)
-        .map(|k| viridis(k as f32 / (VIRIDIS_STEPS - 1) as f32))
+    let mut colors: Vec<[u8; 3]> = (0..FLUID_STEPS)
+        .map(|k| field_colour(field, k as f32 / (FLUID_STEPS - 1) as f32))
         .collect();
     colors.extend((0..BODY_STEPS).map(|k| body_ramp(k as f32 / (BODY_STEPS - 1) as f32)));
     colors.push(BODY_EDGE);
@@ -124,9 +126,9 @@ impl Quantizer {
     /// Colours remembered at most; past it the memo starts again (bounded memory).
     const MEMO_LIMIT: usize = 1 << 20;
 
-    fn new() -> Self {
+    fn new(field: FrameField) -> Self {
         Self {
-            palette: palette(),
+            palette: palette(field),
             memo: HashMap::new(),
         }
     }
@@ -205,11 +207,18 @@ impl GifWriter {
             encoder: None,
             size: (0, 0),
             ticks: Ticks::new(100.0, GIF_MIN_DELAY_CS),
-            quantizer: Quantizer::new(),
+            quantizer: Quantizer::new(FrameField::Speed),
             rgb: Vec::new(),
             indices: Vec::new(),
             frames: 0,
         }
+    }
+
+    /// The same GIF with its palette made for frames coloured by `field` (the default is
+    /// speed); before the first frame.
+    pub fn for_field(mut self, field: FrameField) -> Self {
+        self.quantizer = Quantizer::new(field);
+        self
     }
 
     /// What errors call the GIF: its file, or "the GIF" in memory.
@@ -550,20 +559,29 @@ mod tests {
 
     #[test]
     fn palette_holds_the_renderers_colours() {
-        let p = palette();
-        assert_eq!(p.len(), 256);
-        for c in [
-            [255; 3],
-            [150; 3],
-            [40; 3],
-            viridis(0.0),
-            viridis(1.0),
-            BODY_EDGE,
-        ] {
-            assert!(p.contains(&c), "{c:?}");
+        for field in [FrameField::Speed, FrameField::DensityError] {
+            let p = palette(field);
+            assert_eq!(p.len(), 256);
+            for c in [
+                [255; 3],
+                [150; 3],
+                [40; 3],
+                field_colour(field, 0.0),
+                field_colour(field, 1.0),
+                BODY_EDGE,
+            ] {
+                assert!(p.contains(&c), "{field:?}: {c:?}");
+            }
         }
+        // A density-error frame's white (water at ρ0) is in its palette, not in speed's.
+        let white = field_colour(FrameField::DensityError, 0.5);
+        let mut q = Quantizer::new(FrameField::DensityError);
+        let k = q.index(white) as usize;
+        let near = q.palette[k];
+        assert!((0..3).all(|c| near[c].abs_diff(white[c]) <= 3), "{near:?}");
+        let p = palette(FrameField::Speed);
         // Every body's fill is within a few levels of an entry.
-        let mut q = Quantizer::new();
+        let mut q = Quantizer::new(FrameField::Speed);
         for k in 0..=100 {
             let fill = body_ramp(k as f32 / 100.0);
             let near = p[q.index(fill) as usize];
@@ -572,7 +590,7 @@ mod tests {
                 "{fill:?} -> {near:?}"
             );
         }
-        let mut q = Quantizer::new();
+        let mut q = Quantizer::new(FrameField::Speed);
         assert_eq!(p[q.index([255; 3]) as usize], [255; 3]);
         assert_eq!(p[q.index([254, 255, 253]) as usize], [255; 3]);
     }

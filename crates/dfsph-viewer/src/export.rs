@@ -58,7 +58,8 @@ pub fn download_rendered_png(sim: &dfsph::Simulation) -> anyhow::Result<String> 
     use dfsph_io::render::{render_frame, stamp_time, RenderGeometry, RenderOptions};
     let options = RenderOptions {
         width: crate::video::FRAME_WIDTH,
-        speed_max: dfsph_io::render::speed_scale(sim.scene()),
+        field: dfsph_io::render::FrameField::Speed,
+        scale_max: dfsph_io::render::speed_scale(sim.scene()),
     };
     let mut picture = render_frame(&RenderGeometry::of(sim), &sim.snapshot(), &options)?;
     stamp_time(&mut picture, sim.time(), 2);

@@ -102,7 +102,8 @@ impl VideoRecorder {
         let (messages, inbox) = mpsc::sync_channel(QUEUE);
         let options = RenderOptions {
             width: FRAME_WIDTH,
-            speed_max: dfsph_io::render::speed_scale(sim.scene()),
+            field: dfsph_io::render::FrameField::Speed,
+            scale_max: dfsph_io::render::speed_scale(sim.scene()),
         };
         let dir = dir.to_path_buf();
         let spawned = std::thread::Builder::new()
@@ -370,7 +371,8 @@ impl VideoRecorder {
         }
         let options = RenderOptions {
             width: FRAME_WIDTH,
-            speed_max: dfsph_io::render::speed_scale(sim.scene()),
+            field: dfsph_io::render::FrameField::Speed,
+            scale_max: dfsph_io::render::speed_scale(sim.scene()),
         };
         let mut encoder = FrameEncoder::new(GifWriter::in_memory(), None, options);
         match encoder.frame(&Frame::of(sim)) {
@@ -531,7 +533,8 @@ mod tests {
         tx.send(Message::Stop(0.15)).unwrap();
         let options = RenderOptions {
             width: 100,
-            speed_max: None,
+            field: dfsph_io::render::FrameField::Speed,
+            scale_max: None,
         };
         let saved = encode(rx, dir.path(), options, None).unwrap();
         assert_eq!(saved.len(), 1, "{saved:?}");
