@@ -16,6 +16,7 @@ runs the single-threaded build. Binds 127.0.0.1 only; python3's standard library
 
 import functools
 import http.server
+import os
 import sys
 
 
@@ -37,13 +38,25 @@ def main(argv):
     if not 1 <= len(args) <= 2 or any(f != "--no-isolation" for f in flags):
         sys.exit(f"usage: {argv[0]} OUTDIR [PORT] [--no-isolation]")
     directory = args[0]
+    if not os.path.isfile(os.path.join(directory, "index.html")):
+        sys.exit(f"error: {directory} holds no site (no index.html); build one with "
+                 f"scripts/build-web.sh {directory}")
     port = int(args[1]) if len(args) == 2 else 8080
     Handler.isolate = "--no-isolation" not in flags
+    threaded = os.path.isfile(os.path.join(directory, "threads", "dfsph_web_bg.wasm"))
     Handler.extensions_map = {**Handler.extensions_map, ".wasm": "application/wasm",
                               ".js": "text/javascript"}
     handler = functools.partial(Handler, directory=directory)
     with http.server.ThreadingHTTPServer(("127.0.0.1", port), handler) as server:
-        mode = "cross-origin isolated (threads)" if Handler.isolate else "no isolation (single-threaded)"
+        if not Handler.isolate:
+            mode = "no isolation (single-threaded)"
+        elif threaded:
+            mode = "cross-origin isolated (threads)"
+        else:
+            # index.html falls back to the single-threaded build when threads/ is missing.
+            mode = ("cross-origin isolated, but the site has no threaded build (threads/), so "
+                    "the page runs single-threaded; scripts/build-web.sh builds it with a "
+                    "nightly toolchain and its rust-src component")
         print(f"serving {directory} at http://127.0.0.1:{port}/ — {mode}", flush=True)
         try:
             server.serve_forever()
