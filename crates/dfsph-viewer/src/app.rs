@@ -167,6 +167,10 @@ pub struct ViewerApp {
     /// The scene as loaded (from the command line, the scene list or a file): what `R`
     /// goes back to, whatever was changed since.
     loaded: Scene,
+    /// The file the scene was opened from (its name, without the directory), or `None` for a
+    /// built-in scene or the command line's: the scene list names the file then, not the
+    /// built-in scene the file may have started as.
+    opened_file: Option<String>,
     /// The "Open scene…" dialog.
     opener: SceneOpener,
     mapper: InputMapper,
@@ -277,6 +281,7 @@ impl ViewerApp {
             sim: Stepper::with_threads(sim, threads),
             requested_max_particles,
             loaded,
+            opened_file: None,
             opener: SceneOpener::default(),
             paused: false,
             coloring: Coloring::default(),
@@ -454,6 +459,11 @@ impl ViewerApp {
         match opened.scene {
             Ok(scene) => {
                 if self.load_as_loaded(ctx, scene) {
+                    let file = std::path::Path::new(&opened.name)
+                        .file_name()
+                        .map(|f| f.to_string_lossy().into_owned())
+                        .unwrap_or_else(|| opened.name.clone());
+                    self.opened_file = Some(file);
                     self.set_status(format!("opened {}", opened.name));
                 }
             }
@@ -544,7 +554,9 @@ impl ViewerApp {
                 self.fit = None;
                 self.resolution_note = None;
                 if let Some(b) = BUILTIN_SCENES.get(i) {
-                    self.load_as_loaded(ctx, b.scene());
+                    if self.load_as_loaded(ctx, b.scene()) {
+                        self.opened_file = None;
+                    }
                     // Another tank: a zoom into the last one means nothing there.
                     self.camera.reset();
                 }
@@ -829,6 +841,7 @@ impl eframe::App for ViewerApp {
                         paused: self.paused,
                         recording: self.video.is_recording(),
                         status: status.as_deref(),
+                        opened_file: self.opened_file.as_deref(),
                     },
                 );
             });

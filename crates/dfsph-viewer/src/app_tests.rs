@@ -90,8 +90,17 @@ fn reset_after_opening_a_saved_scene_brings_back_its_walls_and_water() {
 
     // Open it over another scene, change things, reset.
     let (ctx, mut app) = app(coarse("hydrostatic"));
+    assert_eq!(app.opened_file, None);
     app.open_scene(&ctx, scene_file::Opened::from_path(&path));
     assert_eq!(app.sim.fluid_count(), sim.fluid_count());
+    // The scene list names the file, not the built-in scene the state started as (its
+    // scene name is still "dam-break").
+    assert_eq!(app.sim.scene().name, "dam-break");
+    assert_eq!(app.opened_file.as_deref(), Some("saved.json"));
+    assert_eq!(
+        crate::panel::scene_list_label(&app.sim.scene().name, app.opened_file.as_deref()),
+        "saved.json (file)"
+    );
     let walls = drawn_wall_particles(&sim);
     // The drawn wall is one of the saved scene's obstacles now.
     let wall_bodies = |s: &Simulation| s.boundary_bodies().iter().filter(|&&b| b != 0).count();
@@ -122,6 +131,10 @@ fn reset_after_opening_a_saved_scene_brings_back_its_walls_and_water() {
         status.contains("bad.json") && status.contains("`gravity`"),
         "{status}"
     );
+    // A refused file leaves the list naming the file that runs; a built-in scene clears it.
+    assert_eq!(app.opened_file.as_deref(), Some("saved.json"));
+    app.apply(&ctx, Command::LoadScene(0));
+    assert_eq!(app.opened_file, None);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -48,6 +48,18 @@ pub struct PanelState<'a> {
     pub recording: bool,
     /// The last message for the user (rejected actions, saved files).
     pub status: Option<&'a str>,
+    /// The file the scene was opened from, if it was.
+    pub opened_file: Option<&'a str>,
+}
+
+/// What the scene list shows as the current scene: the file a scene was opened from (a saved
+/// state keeps the name of the built-in scene it started as, which is not what runs), or
+/// the scene's name.
+pub fn scene_list_label(scene_name: &str, opened_file: Option<&str>) -> String {
+    match opened_file {
+        Some(file) => format!("{file} (file)"),
+        None => scene_name.to_string(),
+    }
 }
 
 /// Draw the panel's contents; returns the commands the user gave.
@@ -134,11 +146,12 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
         ui.separator();
 
         egui::ComboBox::from_label("scene")
-            .selected_text(scene.name.as_str())
+            .selected_text(scene_list_label(&scene.name, st.opened_file))
             .show_ui(ui, |ui| {
                 for (i, b) in BUILTIN_SCENES.iter().enumerate() {
+                    let current = b.name == scene.name && st.opened_file.is_none();
                     let r = ui
-                        .selectable_label(b.name == scene.name, format!("{} {}", i + 1, b.name))
+                        .selectable_label(current, format!("{} {}", i + 1, b.name))
                         .on_hover_text(b.description);
                     if r.clicked() {
                         out.push(Command::LoadScene(i));
