@@ -587,17 +587,20 @@ impl ViewerApp {
             // CPU rasteriser of `dfsph2d run --format png` and downloaded.
             #[cfg(target_arch = "wasm32")]
             Command::Screenshot => {
-                let said = match export::download_rendered_png(&self.sim) {
-                    Ok(name) => format!("downloaded {name}"),
-                    Err(e) => format!("screenshot failed: {e:#}"),
-                };
+                let said =
+                    match export::download_rendered_png(&self.sim, self.coloring.frame_field()) {
+                        Ok(name) => format!("downloaded {name}"),
+                        Err(e) => format!("screenshot failed: {e:#}"),
+                    };
                 self.set_status(said);
             }
             Command::ToggleHelp => self.show_help = !self.show_help,
             Command::CloseHelp => self.show_help = false,
             Command::ToggleRecording => {
                 let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
-                let said = self.video.toggle(&self.sim, &dir);
+                let said = self
+                    .video
+                    .toggle(&self.sim, &dir, self.coloring.frame_field());
                 self.set_status(said);
             }
             Command::DropBody { shape, at } => {

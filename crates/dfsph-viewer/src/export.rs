@@ -51,15 +51,19 @@ pub fn timestamped_file(dir: &Path, ext: &str) -> PathBuf {
     path
 }
 
-/// The browser's screenshot: the simulation drawn by `dfsph2d run`'s CPU rasteriser, with its
+/// The browser's screenshot: the simulation drawn by `dfsph2d run`'s CPU rasteriser in the
+/// viewer's colouring (`field`), with its
 /// time stamped, downloaded as `dfsph2d-YYYYMMDD-HHMMSS.png`. Returns the name.
 #[cfg(target_arch = "wasm32")]
-pub fn download_rendered_png(sim: &dfsph::Simulation) -> anyhow::Result<String> {
+pub fn download_rendered_png(
+    sim: &dfsph::Simulation,
+    field: dfsph_io::render::FrameField,
+) -> anyhow::Result<String> {
     use dfsph_io::render::{render_frame, stamp_time, RenderGeometry, RenderOptions};
     let options = RenderOptions {
         width: crate::video::FRAME_WIDTH,
-        field: dfsph_io::render::FrameField::Speed,
-        scale_max: dfsph_io::render::speed_scale(sim.scene()),
+        field,
+        scale_max: dfsph_io::render::field_scale(sim.scene(), field),
     };
     let mut picture = render_frame(&RenderGeometry::of(sim), &sim.snapshot(), &options)?;
     stamp_time(&mut picture, sim.time(), 2);

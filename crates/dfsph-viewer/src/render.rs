@@ -111,6 +111,15 @@ impl Coloring {
         Self::ALL[(i + 1) % Self::ALL.len()]
     }
 
+    /// The same field for the CPU rasteriser's pictures (recordings, the page's screenshot).
+    pub fn frame_field(self) -> dfsph_io::render::FrameField {
+        match self {
+            Coloring::Speed => dfsph_io::render::FrameField::Speed,
+            Coloring::Density => dfsph_io::render::FrameField::DensityError,
+            Coloring::Pressure => dfsph_io::render::FrameField::Pressure,
+        }
+    }
+
     /// Name with unit, for the legend and the panel.
     pub fn label(self) -> &'static str {
         match self {

@@ -23,7 +23,7 @@ use anyhow::Result;
 #[cfg(not(target_arch = "wasm32"))]
 use anyhow::{anyhow, Context as _};
 use dfsph::{Simulation, Snapshot};
-use dfsph_io::render::{RenderGeometry, RenderOptions};
+use dfsph_io::render::{FrameField, RenderGeometry, RenderOptions};
 use dfsph_io::video::{GifWriter, Mp4Writer};
 
 /// Simulated time between recorded frames, s: 25 frames per simulated second.
@@ -92,7 +92,7 @@ impl VideoRecorder {
 
     /// Start recording into `dir` (with the simulation's current state as the first frame),
     /// or stop. Returns what to tell the user.
-    pub fn toggle(&mut self, sim: &Simulation, dir: &Path) -> String {
+    pub fn toggle(&mut self, sim: &Simulation, dir: &Path, field: FrameField) -> String {
         if self.recording.is_some() {
             self.stop(sim.time());
             return "recording stopped; finishing the video…".into();
@@ -102,8 +102,8 @@ impl VideoRecorder {
         let (messages, inbox) = mpsc::sync_channel(QUEUE);
         let options = RenderOptions {
             width: FRAME_WIDTH,
-            field: dfsph_io::render::FrameField::Speed,
-            scale_max: dfsph_io::render::speed_scale(sim.scene()),
+            field,
+            scale_max: dfsph_io::render::field_scale(sim.scene(), field),
         };
         let dir = dir.to_path_buf();
         let spawned = std::thread::Builder::new()
@@ -276,7 +276,8 @@ fn encode(
     let gif_tmp = dir.join(format!("{unique}.gif"));
     let mp4_tmp = dir.join(format!("{unique}.mp4"));
     let mp4 = ffmpeg.map(|f| Mp4Writer::new(&mp4_tmp, f, FRAME_INTERVAL));
-    let mut encoder = FrameEncoder::new(GifWriter::new(&gif_tmp), mp4, options);
+    let gif = GifWriter::new(&gif_tmp).for_field(options.field);
+    let mut encoder = FrameEncoder::new(gif, mp4, options);
     for message in inbox {
         match message {
             Message::Frame(frame) => encoder.frame(&frame)?,
@@ -365,16 +366,17 @@ impl VideoRecorder {
 
     /// Start recording (with the simulation's current state as the first frame), or stop and
     /// download the GIF. Returns what to tell the user. (`_dir`: the page has none.)
-    pub fn toggle(&mut self, sim: &Simulation, _dir: &Path) -> String {
+    pub fn toggle(&mut self, sim: &Simulation, _dir: &Path, field: FrameField) -> String {
         if let Some(recording) = self.recording.take() {
             return download(recording, sim.time());
         }
         let options = RenderOptions {
             width: FRAME_WIDTH,
-            field: dfsph_io::render::FrameField::Speed,
-            scale_max: dfsph_io::render::speed_scale(sim.scene()),
+            field,
+            scale_max: dfsph_io::render::field_scale(sim.scene(), field),
         };
-        let mut encoder = FrameEncoder::new(GifWriter::in_memory(), None, options);
+        let gif = GifWriter::in_memory().for_field(field);
+        let mut encoder = FrameEncoder::new(gif, None, options);
         match encoder.frame(&Frame::of(sim)) {
             Ok(()) => {
                 self.recording = Some(PageRecording {
@@ -458,6 +460,43 @@ mod tests {
         delays
     }
 
+    /// A recording follows the viewer's colouring: recorded while colouring by density
+    /// error, the GIF's palette holds that scale's blue end, which speed's viridis has not.
+    #[test]
+    fn a_recording_is_coloured_as_the_viewer_colours_the_water() {
+        let blue_end = [59u8, 76, 192];
+        let palette_of = |field: FrameField| -> Vec<[u8; 3]> {
+            let dir = tempfile::tempdir().unwrap();
+            let mut sim = sim();
+            let mut rec = VideoRecorder::default();
+            rec.toggle(&sim, dir.path(), field);
+            sim.step();
+            rec.capture(&sim);
+            rec.toggle(&sim, dir.path(), field);
+            for _ in 0..500 {
+                if rec.poll().is_some() {
+                    break;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(10));
+            }
+            let gif = std::fs::read_dir(dir.path())
+                .unwrap()
+                .map(|e| e.unwrap().path())
+                .find(|p| p.extension().is_some_and(|e| e == "gif"))
+                .expect("a GIF");
+            let d = gif::DecodeOptions::new()
+                .read_info(std::fs::File::open(gif).unwrap())
+                .unwrap();
+            d.global_palette()
+                .unwrap()
+                .chunks(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect()
+        };
+        assert!(palette_of(FrameField::DensityError).contains(&blue_end));
+        assert!(!palette_of(FrameField::Speed).contains(&blue_end));
+    }
+
     #[test]
     fn a_recording_has_a_frame_per_interval_of_simulated_time_and_a_new_name() {
         let dir = tempfile::tempdir().unwrap();
@@ -466,13 +505,13 @@ mod tests {
         // Someone's file of the name the recording would take is kept.
         let taken = crate::export::timestamped_file(dir.path(), "gif");
         std::fs::write(&taken, "mine").unwrap();
-        rec.toggle(&sim, dir.path());
+        rec.toggle(&sim, dir.path(), FrameField::Speed);
         assert!(rec.is_recording());
         while sim.time() < 0.2 {
             sim.step();
             rec.capture(&sim);
         }
-        rec.toggle(&sim, dir.path());
+        rec.toggle(&sim, dir.path(), FrameField::Speed);
         assert!(!rec.is_recording());
         let mut said = None;
         for _ in 0..500 {
@@ -565,13 +604,13 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let mut sim = sim();
         let mut rec = VideoRecorder::default();
-        rec.toggle(&sim, dir.path());
+        rec.toggle(&sim, dir.path(), FrameField::Speed);
         while sim.time() < 1.0 {
             sim.step();
             rec.capture(&sim);
         }
         let end = sim.time();
-        rec.toggle(&sim, dir.path());
+        rec.toggle(&sim, dir.path(), FrameField::Speed);
         let delays = finished_gif(&mut rec, dir.path());
         assert!(delays.len() <= 27, "{delays:?}");
         // The recorded time, plus at most one interval for the last frame (the state at the
