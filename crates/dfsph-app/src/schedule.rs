@@ -6,13 +6,9 @@
 //! reaching it (otherwise 0.02 s = 4 × 0.005 s could be missed by rounding and taken one
 //! step late).
 
-/// Fraction of a step's length by which a target may be missed and still count as reached.
-const SLACK: f64 = 0.01;
-
-/// Has a step of length `dt` that ended at `time` reached `target`?
-pub fn reached(time: f64, dt: f64, target: f64) -> bool {
-    time + SLACK * dt >= target
-}
+/// Has a step of length `dt` that ended at `time` reached `target`? The solver's rule,
+/// which `Simulation::has_reached` applies too.
+pub use dfsph::simulation::reached;
 
 /// Snapshot times `every`, `2·every`, … (the snapshot at t = 0 is taken before stepping).
 #[derive(Clone, Debug)]

@@ -482,15 +482,15 @@ fn draw_legend(pixmap: &mut Pixmap, band: u32, field: FrameField, top: f32) {
     let y_text = 0.5 * (band as f32 - text_h);
     let grey = Color::from_rgba8(TEXT_GREY, TEXT_GREY, TEXT_GREY, 255);
     let (low, high) = match field {
-        FrameField::Speed => ("0".to_string(), format!("{} m/s", speed_label(top))),
+        FrameField::Speed => ("0".to_string(), format!("{} m/s", scale_label(top))),
         FrameField::Pressure if top >= 1000.0 => (
             "0".to_string(),
-            format!("{} kPa", speed_label(top / 1000.0)),
+            format!("{} kPa", scale_label(top / 1000.0)),
         ),
-        FrameField::Pressure => ("0".to_string(), format!("{} Pa", speed_label(top))),
+        FrameField::Pressure => ("0".to_string(), format!("{} Pa", scale_label(top))),
         FrameField::DensityError => (
-            format!("-{} %", speed_label(top)),
-            format!("+{} %", speed_label(top)),
+            format!("-{} %", scale_label(top)),
+            format!("+{} %", scale_label(top)),
         ),
     };
 
@@ -517,8 +517,8 @@ fn draw_legend(pixmap: &mut Pixmap, band: u32, field: FrameField, top: f32) {
     font::draw_text(pixmap, x, y_text, text_scale, &high, grey);
 }
 
-/// A speed with two or three significant digits.
-fn speed_label(v: f32) -> String {
+/// A scale's end (m/s, kPa, %) with two or three significant digits.
+fn scale_label(v: f32) -> String {
     if v >= 100.0 {
         format!("{v:.0}")
     } else if v >= 10.0 {
@@ -957,10 +957,10 @@ mod tests {
     }
 
     #[test]
-    fn speed_labels() {
-        assert_eq!(speed_label(6.26), "6.26");
-        assert_eq!(speed_label(12.34), "12.3");
-        assert_eq!(speed_label(250.0), "250");
-        assert_eq!(speed_label(0.05), "5.0e-2");
+    fn scale_labels() {
+        assert_eq!(scale_label(6.26), "6.26");
+        assert_eq!(scale_label(12.34), "12.3");
+        assert_eq!(scale_label(250.0), "250");
+        assert_eq!(scale_label(0.05), "5.0e-2");
     }
 }

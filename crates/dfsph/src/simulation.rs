@@ -83,6 +83,15 @@ pub fn step_seconds(dt: f32) -> f64 {
     dt.to_string().parse().unwrap_or(dt as f64)
 }
 
+/// Has a step of length `dt` (s) that ended at `time` reached `target`? Yes when it ended
+/// at `target`, past it, or short of it by at most 1 % of its length: the clock sums steps
+/// in double precision, so 0.02 s = 4 × 0.005 s may end a hair short and must not be taken
+/// one step late. [`Simulation::has_reached`] for the last step; the command line's
+/// snapshot schedule for each step it writes after.
+pub fn reached(time: f64, dt: f64, target: f64) -> bool {
+    time + 0.01 * dt >= target
+}
+
 /// Which of a step's terms [`Simulation::rigid_body_impulses`] sums.
 #[derive(Clone, Copy, Debug)]
 enum Terms {
@@ -1270,7 +1279,7 @@ impl Simulation {
     /// precision, so a hundred steps of 0.001 may end at 0.09999999999999999; without the
     /// slack a loop `while time < 0.1` would take a 101st step.
     pub fn has_reached(&self, target: f64) -> bool {
-        self.time + 0.01 * self.stats.dt >= target
+        reached(self.time, self.stats.dt, target)
     }
 
     /// Diagnostics of the last step (before the first: the particle counts, the rest zero).

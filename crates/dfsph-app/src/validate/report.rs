@@ -81,21 +81,25 @@ pub fn render(settings: Settings, reports: &[CaseReport], wall_s: f64) -> String
     // in a table of their own: a coarse run's "fail" under an overall PASS read as a failure.
     let (checked, reported): (Vec<&&Check>, Vec<&&Check>) =
         checks.iter().partition(|c| c.counts(settings));
+    // One row per check: its number in its table, case, name, value, tolerance, then `last`.
+    let rows = |md: &mut String, list: &[&&Check], last: &dyn Fn(&Check) -> &'static str| {
+        for (i, c) in list.iter().enumerate() {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} | {} | {} |",
+                i + 1,
+                cell(&c.case),
+                cell(&c.name),
+                cell(&c.value),
+                cell(&c.tolerance),
+                last(c)
+            );
+        }
+    };
     let _ = writeln!(md, "## Checks\n");
     let _ = writeln!(md, "| # | case | check | value | tolerance | result |");
     let _ = writeln!(md, "|---|---|---|---|---|---|");
-    for (i, c) in checked.iter().enumerate() {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} | {} | {} |",
-            i + 1,
-            cell(&c.case),
-            cell(&c.name),
-            cell(&c.value),
-            cell(&c.tolerance),
-            result(c, settings)
-        );
-    }
+    rows(&mut md, &checked, &|c| result(c, settings));
     if !reported.is_empty() {
         let _ = writeln!(
             md,
@@ -109,18 +113,13 @@ pub fn render(settings: Settings, reports: &[CaseReport], wall_s: f64) -> String
             "| # | case | comparison | value | tolerance | at this resolution |"
         );
         let _ = writeln!(md, "|---|---|---|---|---|---|");
-        for (i, c) in reported.iter().enumerate() {
-            let _ = writeln!(
-                md,
-                "| {} | {} | {} | {} | {} | {} |",
-                i + 1,
-                cell(&c.case),
-                cell(&c.name),
-                cell(&c.value),
-                cell(&c.tolerance),
-                if c.pass { "within" } else { "outside" }
-            );
-        }
+        rows(&mut md, &reported, &|c| {
+            if c.pass {
+                "within"
+            } else {
+                "outside"
+            }
+        });
     }
     let mut ranked: Vec<_> = checks.iter().filter(|c| c.ratio.is_finite()).collect();
     ranked.sort_by(|a, b| b.ratio.total_cmp(&a.ratio));
