@@ -215,6 +215,11 @@ pub struct RunArgs {
     #[arg(long, value_name = "FIELD", default_value = "speed", value_parser = color_by)]
     pub color_by: dfsph_io::render::FrameField,
 
+    /// How PNG frames and videos draw the water: surface (a smooth surface with a light rim,
+    /// as the viewer opens) or particles (one dot per particle, the viewer's `p` key).
+    #[arg(long, value_name = "LOOK", default_value = "surface", value_parser = look)]
+    pub look: dfsph_io::render::WaterLook,
+
     /// Exit 0 even when the run blew up without NaN: the water's energy rose by more than
     /// 2 % of M·g·H without an action, or the density solve ended at its iteration cap 20
     /// steps in a row. Without it such a run still writes everything, warns when it
@@ -338,6 +343,17 @@ fn color_by(name: &str) -> Result<dfsph_io::render::FrameField, String> {
             .map(|(n, _)| *n)
             .collect();
         format!("{name:?} is not a field; one of {}", names.join(", "))
+    })
+}
+
+/// `--look`: one of the names of [`dfsph_io::render::WaterLook::NAMES`].
+fn look(name: &str) -> Result<dfsph_io::render::WaterLook, String> {
+    dfsph_io::render::WaterLook::from_name(name).ok_or_else(|| {
+        let names: Vec<&str> = dfsph_io::render::WaterLook::NAMES
+            .iter()
+            .map(|(n, _)| *n)
+            .collect();
+        format!("{name:?} is not a look; one of {}", names.join(", "))
     })
 }
 

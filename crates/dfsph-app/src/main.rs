@@ -263,8 +263,12 @@ fn run(args: RunArgs) -> Result<(), Failure> {
         every: args.every,
         formats: args.format,
         out: args.out,
-        png_width: args.png_width,
-        color_by: args.color_by,
+        picture: dfsph_io::render::RenderOptions {
+            width: args.png_width,
+            field: args.color_by,
+            look: args.look,
+            scale_max: None,
+        },
     };
     // A failed write (a full disk) stops the run with one line naming the file; what was
     // completed stays (docs: `stats.csv` has every completed step).

@@ -357,8 +357,7 @@ impl FrameWriter {
         out: &Path,
         formats: &[Format],
         scene: &Scene,
-        png_width: u32,
-        color_by: dfsph_io::render::FrameField,
+        picture: RenderOptions,
         every: f64,
         manifest: &mut Manifest,
     ) -> Result<Self> {
@@ -368,7 +367,7 @@ impl FrameWriter {
         let pictures = formats.iter().any(|f| f.is_picture());
         let gif = if formats.contains(&Format::Gif) {
             manifest.record(GIF_FILE)?;
-            Some(dfsph_io::video::GifWriter::new(out.join(GIF_FILE)).for_field(color_by))
+            Some(dfsph_io::video::GifWriter::new(out.join(GIF_FILE)).for_field(picture.field))
         } else {
             None
         };
@@ -411,9 +410,8 @@ impl FrameWriter {
             bodies_csv: None,
             body_files: Vec::new(),
             png: RenderOptions {
-                width: png_width,
-                field: color_by,
-                scale_max: dfsph_io::render::field_scale(scene, color_by),
+                scale_max: dfsph_io::render::field_scale(scene, picture.field),
+                ..picture
             },
             last_step: None,
         })
@@ -625,8 +623,10 @@ mod tests {
             dir.path(),
             &[Format::Vtk],
             &scene,
-            320,
-            Default::default(),
+            RenderOptions {
+                width: 320,
+                ..Default::default()
+            },
             0.05,
             &mut manifest,
         )
@@ -680,8 +680,10 @@ mod tests {
             dir.path(),
             &[Format::Vtk],
             &scene,
-            320,
-            Default::default(),
+            RenderOptions {
+                width: 320,
+                ..Default::default()
+            },
             0.05,
             &mut manifest,
         )

@@ -25,9 +25,9 @@ pub struct RunPlan {
     pub every: f64,
     pub formats: Vec<Format>,
     pub out: PathBuf,
-    pub png_width: u32,
-    /// The field PNG frames and videos colour the water by.
-    pub color_by: dfsph_io::render::FrameField,
+    /// How PNG frames and videos are drawn: width, the field colouring the water, the
+    /// water's look (the colour scale is set from the scene).
+    pub picture: dfsph_io::render::RenderOptions,
 }
 
 /// What happened.
@@ -148,8 +148,7 @@ pub fn execute_with(
         &plan.out,
         &plan.formats,
         &plan.scene,
-        plan.png_width,
-        plan.color_by,
+        plan.picture,
         plan.every,
         &mut manifest,
     )?;

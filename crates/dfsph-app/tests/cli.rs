@@ -966,3 +966,58 @@ fn frames_are_coloured_by_the_field_asked_for() {
     );
     assert!(!tmp.path().join("bad").exists());
 }
+
+/// `--look` draws the water as a surface (the default) or as dots: the dots leave the
+/// background showing between particles, so the dotted frame has more background pixels; an
+/// unknown look is a usage error that lists the known ones.
+#[test]
+fn frames_draw_the_water_as_a_surface_unless_asked_for_dots() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = write_scene(tmp.path(), "coarse.json", COARSE.as_bytes());
+    let background = |look: Option<&str>| -> usize {
+        let out_dir = tmp.path().join(look.unwrap_or("default"));
+        let mut args = vec![
+            "run",
+            scene.to_str().unwrap(),
+            "--until",
+            "0.02",
+            "--format",
+            "png",
+            "--out",
+            out_dir.to_str().unwrap(),
+        ];
+        if let Some(look) = look {
+            args.extend(["--look", look]);
+        }
+        let out = dfsph2d(&args);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        let png = tiny_skia::Pixmap::load_png(out_dir.join("particles/00001.png")).unwrap();
+        png.pixels()
+            .iter()
+            .filter(|p| p.red() == 255 && p.green() == 255 && p.blue() == 255)
+            .count()
+    };
+    let (default, surface, dots) = (
+        background(None),
+        background(Some("surface")),
+        background(Some("particles")),
+    );
+    assert_eq!(default, surface);
+    assert!(dots > surface, "dots {dots}, surface {surface}");
+
+    let out = dfsph2d(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--look",
+        "metaballs",
+        "--out",
+        tmp.path().join("bad").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.contains("\"metaballs\" is not a look; one of surface, particles"),
+        "{stderr}"
+    );
+    assert!(!tmp.path().join("bad").exists());
+}

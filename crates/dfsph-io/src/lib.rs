@@ -36,6 +36,7 @@ pub mod input;
 pub mod numbers;
 pub mod render;
 pub mod stats;
+pub mod surface;
 pub mod video;
 pub mod vtk;
 

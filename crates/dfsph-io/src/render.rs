@@ -19,6 +19,7 @@ use tiny_skia::{Color, FillRule, LineJoin, Paint, PathBuilder, Pixmap, Rect, Str
 use crate::atomic::write_atomic;
 use crate::colormap::{body_fill, viridis, BODY_EDGE};
 use crate::font;
+use crate::surface::{SurfaceGrid, SurfaceRaster};
 
 /// Largest image side in pixels.
 pub const MAX_SIDE: u32 = 16_384;
@@ -130,6 +131,32 @@ impl FrameField {
     }
 }
 
+/// How the water is drawn.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum WaterLook {
+    /// A smooth surface with an anti-aliased edge ([`crate::surface`]).
+    #[default]
+    Surface,
+    /// One dot per particle, at the particle radius.
+    Particles,
+}
+
+impl WaterLook {
+    /// Every look, by the name `--look` takes.
+    pub const NAMES: [(&'static str, WaterLook); 2] = [
+        ("surface", WaterLook::Surface),
+        ("particles", WaterLook::Particles),
+    ];
+
+    /// The look named `name` (`surface`, `particles`).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::NAMES
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|&(_, l)| l)
+    }
+}
+
 /// How to draw.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderOptions {
@@ -141,6 +168,8 @@ pub struct RenderOptions {
     /// from minus this to this). `None`: the frame's largest value. Give a fixed value to
     /// keep colours comparable between frames ([`field_scale`]).
     pub scale_max: Option<f32>,
+    /// The water as a surface or as dots.
+    pub look: WaterLook,
 }
 
 impl Default for RenderOptions {
@@ -149,6 +178,7 @@ impl Default for RenderOptions {
             width: 800,
             field: FrameField::Speed,
             scale_max: None,
+            look: WaterLook::Surface,
         }
     }
 }
@@ -275,26 +305,48 @@ pub fn render_frame(
             .fold(0.0, f32::max),
     };
     let top = if top > 0.0 { top } else { 1.0 };
-    let mut buckets: Vec<Option<PathBuilder>> = (0..BUCKETS).map(|_| None).collect();
-    for (&p, &value) in snapshot.position.iter().zip(&values) {
-        if !p.is_finite() {
-            continue;
-        }
+    // The colour bucket of a value.
+    let colour_of = |value: f32| {
         let t = scale_position(options.field, value, top);
-        let k = ((if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) }) * (BUCKETS - 1) as f32).round()
-            as usize;
-        let (x, y) = view.map(p);
-        buckets[k]
-            .get_or_insert_with(PathBuilder::new)
-            .push_circle(x, y, r_px);
-    }
-    for (k, path) in buckets.into_iter().enumerate() {
-        if let Some(path) = path {
-            fill(
-                &mut pixmap,
-                path,
-                field_colour(options.field, k as f32 / (BUCKETS - 1) as f32),
-            );
+        ((if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) }) * (BUCKETS - 1) as f32).round() as usize
+    };
+    match options.look {
+        WaterLook::Surface => {
+            // Pixel (px, py) of the scene below the band has its centre at
+            // x0 + (px + 0.5 − left)/scale, y1 − (py + 0.5)/scale.
+            let grid = SurfaceGrid {
+                top_left: Vec2::new(view.x0 - view.left / view.scale, view.y1),
+                cell: 1.0 / view.scale,
+                width,
+                height: height - band,
+            };
+            let mut raster = SurfaceRaster::default();
+            raster.draw(grid, &snapshot.position, geometry.particle_radius, |i| {
+                let k = colour_of(values.get(i).copied().unwrap_or(0.0));
+                field_colour(options.field, k as f32 / (BUCKETS - 1) as f32)
+            });
+            blend_below(&mut pixmap, band, raster.rgba());
+        }
+        WaterLook::Particles => {
+            let mut buckets: Vec<Option<PathBuilder>> = (0..BUCKETS).map(|_| None).collect();
+            for (&p, &value) in snapshot.position.iter().zip(&values) {
+                if !p.is_finite() {
+                    continue;
+                }
+                let (x, y) = view.map(p);
+                buckets[colour_of(value)]
+                    .get_or_insert_with(PathBuilder::new)
+                    .push_circle(x, y, r_px);
+            }
+            for (k, path) in buckets.into_iter().enumerate() {
+                if let Some(path) = path {
+                    fill(
+                        &mut pixmap,
+                        path,
+                        field_colour(options.field, k as f32 / (BUCKETS - 1) as f32),
+                    );
+                }
+            }
         }
     }
 
@@ -456,6 +508,23 @@ pub(crate) fn field_colour(field: FrameField, t: f32) -> [u8; 3] {
     }
 }
 
+/// Blend `rgba` (straight alpha, the pixmap's width, rows from `top` down) over the opaque
+/// `pixmap`.
+fn blend_below(pixmap: &mut Pixmap, top: u32, rgba: &[u8]) {
+    let start = 4 * top as usize * pixmap.width() as usize;
+    let dst = &mut pixmap.data_mut()[start..];
+    for (d, s) in dst.chunks_exact_mut(4).zip(rgba.chunks_exact(4)) {
+        let a = s[3] as u32;
+        if a == 0 {
+            continue;
+        }
+        for k in 0..3 {
+            d[k] = ((s[k] as u32 * a + d[k] as u32 * (255 - a) + 127) / 255) as u8;
+        }
+        d[3] = 255;
+    }
+}
+
 fn fill(pixmap: &mut Pixmap, path: PathBuilder, rgb: [u8; 3]) {
     if let Some(path) = path.finish() {
         let mut paint = Paint {
@@ -605,6 +674,7 @@ mod tests {
             width: 400,
             field: FrameField::Speed,
             scale_max: Some(2.0),
+            look: WaterLook::Surface,
         };
         write_png(&path, &geometry, &snap, &options).unwrap();
 
@@ -644,6 +714,49 @@ mod tests {
         let row: Vec<[u8; 3]> = (0..img.width()).map(|x| pixel(&img, x, band / 2)).collect();
         assert!(row.iter().any(|c| *c == viridis(0.0)));
         assert!(row.iter().any(|c| *c == viridis(1.0)));
+    }
+
+    /// The water of the test scene is one surface: between two particles of a row, where
+    /// dots leave the background showing through on the diagonal gaps of the square lattice,
+    /// the surface is water; above it both are background.
+    #[test]
+    fn the_surface_closes_the_gaps_that_dots_leave() {
+        let (walls, snap) = scene();
+        let geometry = RenderGeometry {
+            rest_density: 1000.0,
+            tank_min: Vec2::ZERO,
+            tank_max: Vec2::ONE,
+            boundary: Cow::Borrowed(&walls[..]),
+            bodies: Vec::new(),
+            particle_radius: 0.01,
+        };
+        let draw = |look| {
+            let options = RenderOptions {
+                width: 1000,
+                field: FrameField::Speed,
+                scale_max: Some(2.0),
+                look,
+            };
+            let view = layout(&geometry, options.width).unwrap().view;
+            let img = render_frame(&geometry, &snap, &options).unwrap();
+            (view, img)
+        };
+        let at = |(view, img): &(View, Pixmap), p: Vec2| {
+            let (x, y) = view.map(p);
+            pixel(img, x as u32, y as u32)
+        };
+        let surface = draw(WaterLook::Surface);
+        let dots = draw(WaterLook::Particles);
+        // The corner between four still particles (spacing d = 0.02, centres at odd
+        // multiples of 0.01).
+        let gap = Vec2::new(0.32, 0.08);
+        assert_eq!(at(&dots, gap), [255, 255, 255]);
+        let water = at(&surface, gap);
+        assert_eq!(water, at(&surface, Vec2::new(0.33, 0.09)), "{water:?}");
+        assert_ne!(water, [255, 255, 255]);
+        for picture in [&surface, &dots] {
+            assert_eq!(at(picture, Vec2::new(0.5, 0.5)), [255, 255, 255]);
+        }
     }
 
     /// The same block coloured by pressure (the left half at 2,000 Pa, the right at 0) and by
@@ -688,6 +801,8 @@ mod tests {
                 width: 400,
                 field,
                 scale_max,
+                // Dots: one column's own colour is not mixed with its neighbours'.
+                look: WaterLook::Particles,
             };
             render_frame(&geometry, &snap, &options).unwrap()
         };
@@ -751,6 +866,7 @@ mod tests {
                 width: 800,
                 field: FrameField::Speed,
                 scale_max: None,
+                look: WaterLook::Surface,
             },
         )
         .unwrap();
@@ -887,6 +1003,7 @@ mod tests {
             width: 800,
             field: FrameField::Speed,
             scale_max: None,
+            look: WaterLook::Surface,
         };
         let view = layout(&geometry, options.width).unwrap().view;
         let img = render_frame(&geometry, &sim.snapshot(), &options).unwrap();

@@ -93,19 +93,26 @@ fn to_rgb(pixmap: &Pixmap, width: u32, height: u32, out: &mut Vec<u8>) {
     }
 }
 
-/// The GIF's one palette, shared by every frame: 200 steps of the field's colour scale
+/// The GIF's one palette, shared by every frame: 136 steps of the field's colour scale
 /// (viridis for speed and pressure, blue–white–red for the density error: the fluid's colours),
-/// 24 steps of the rigid bodies' fills and their edge colour, and 31 greys (background,
+/// 64 steps of it lightened as the surface's rim is ([`crate::surface::RIM_LIGHTENING`]), 24 steps of the rigid bodies' fills and their edge colour, and 31 greys (background,
 /// walls, text, and their anti-aliased edges). The renderer draws from these colours only,
 /// so a fixed palette keeps them stable from frame to frame, where a per-frame quantiser
 /// would make the colour of still water flicker. (A body's fill is the nearest of the 24:
 /// at most about 3 levels off in each channel.)
 fn palette(field: FrameField) -> Vec<[u8; 3]> {
-    const FLUID_STEPS: usize = 200;
+    const FLUID_STEPS: usize = 136;
+    const RIM_STEPS: usize = 64;
     const BODY_STEPS: usize = 24;
     let mut colors: Vec<[u8; 3]> = (0..FLUID_STEPS)
         .map(|k| field_colour(field, k as f32 / (FLUID_STEPS - 1) as f32))
         .collect();
+    // The surface's light rim (`crate::surface`): the ramp lightened as at the edge.
+    let light = crate::surface::RIM_LIGHTENING;
+    colors.extend((0..RIM_STEPS).map(|k| {
+        let c = field_colour(field, k as f32 / (RIM_STEPS - 1) as f32);
+        c.map(|v| (v as f32 + light * (255.0 - v as f32)).round() as u8)
+    }));
     colors.extend((0..BODY_STEPS).map(|k| body_ramp(k as f32 / (BODY_STEPS - 1) as f32)));
     colors.push(BODY_EDGE);
     // The renderer's exact greys first (background, walls, text), then an even ramp.

@@ -12,6 +12,7 @@ use anyhow::{anyhow, Context as _};
 use dfsph::recording::{End, Header, Recorder};
 use dfsph::scene::BUILTIN_SCENES;
 use dfsph::{Action, Scene, Simulation, StepStats};
+use dfsph_io::render::WaterLook;
 use eframe::egui::{self, vec2, Color32, Sense, Stroke, ViewportCommand};
 
 use crate::bodies;
@@ -176,6 +177,10 @@ pub struct ViewerApp {
     mapper: InputMapper,
     paused: bool,
     coloring: Coloring,
+    /// The water as a surface (the default) or as dots (`P`).
+    look: WaterLook,
+    /// The surface's raster and texture.
+    surface: render::SurfaceLayer,
     /// The colour scale of each colouring, in [`Coloring::ALL`] order.
     scales: [ColorScale; 3],
     /// The shown field's values (one per fluid particle) and scratch room for percentiles.
@@ -285,6 +290,8 @@ impl ViewerApp {
             opener: SceneOpener::default(),
             paused: false,
             coloring: Coloring::default(),
+            look: WaterLook::default(),
+            surface: render::SurfaceLayer::default(),
             scales,
             values: Vec::new(),
             scratch: Vec::new(),
@@ -576,6 +583,12 @@ impl ViewerApp {
                 self.load_other(ctx, scene, self.requested_max_particles);
             }
             Command::CycleColoring => self.coloring = self.coloring.next(),
+            Command::ToggleLook => {
+                self.look = match self.look {
+                    WaterLook::Surface => WaterLook::Particles,
+                    WaterLook::Particles => WaterLook::Surface,
+                }
+            }
             #[cfg(not(target_arch = "wasm32"))]
             Command::Screenshot => {
                 let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
@@ -587,20 +600,23 @@ impl ViewerApp {
             // CPU rasteriser of `dfsph2d run --format png` and downloaded.
             #[cfg(target_arch = "wasm32")]
             Command::Screenshot => {
-                let said =
-                    match export::download_rendered_png(&self.sim, self.coloring.frame_field()) {
-                        Ok(name) => format!("downloaded {name}"),
-                        Err(e) => format!("screenshot failed: {e:#}"),
-                    };
+                let said = match export::download_rendered_png(
+                    &self.sim,
+                    self.coloring.frame_field(),
+                    self.look,
+                ) {
+                    Ok(name) => format!("downloaded {name}"),
+                    Err(e) => format!("screenshot failed: {e:#}"),
+                };
                 self.set_status(said);
             }
             Command::ToggleHelp => self.show_help = !self.show_help,
             Command::CloseHelp => self.show_help = false,
             Command::ToggleRecording => {
                 let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
-                let said = self
-                    .video
-                    .toggle(&self.sim, &dir, self.coloring.frame_field());
+                let said =
+                    self.video
+                        .toggle(&self.sim, &dir, self.coloring.frame_field(), self.look);
                 self.set_status(said);
             }
             Command::DropBody { shape, at } => {
@@ -834,6 +850,7 @@ impl eframe::App for ViewerApp {
                         mapper: &mut self.mapper,
                         time_scale: &mut self.time_scale,
                         coloring: &mut self.coloring,
+                        look: &mut self.look,
                         scales: &mut self.scales,
                         view_fitted: self.camera.is_fitted(),
                         radius_edit: &mut self.radius_edit,
@@ -1076,8 +1093,23 @@ impl ViewerApp {
         self.scale_mut().follow(target, frame_seconds);
         let scale = *self.scale_mut();
         coloring.colors(&self.values, scale.range, &mut self.fluid_colors);
-        let mesh = render::particle_mesh(&self.sim, transform, self.disc.id(), &self.fluid_colors);
+        let mesh = render::particle_mesh(
+            &self.sim,
+            transform,
+            self.disc.id(),
+            &self.fluid_colors,
+            self.look,
+        );
         world_painter.add(egui::Shape::mesh(mesh));
+        if self.look == WaterLook::Surface {
+            self.surface.draw(
+                world_painter,
+                transform,
+                ctx.pixels_per_point(),
+                &self.sim,
+                &self.fluid_colors,
+            );
+        }
         // The bodies over the water that touches them; their boundary particles are not drawn.
         let rigid = self.sim.rigid_bodies();
         bodies::draw_bodies(world_painter, transform, &rigid);

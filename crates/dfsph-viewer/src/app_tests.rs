@@ -223,7 +223,13 @@ fn b_and_o_drop_bodies_at_the_cursor_and_a_left_drag_moves_one() {
         Vec2::new(2.0, 2.0),
         egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(640.0, 480.0)),
     );
-    let mesh = render::particle_mesh(&app.sim, &t, egui::TextureId::default(), &[]);
+    let mesh = render::particle_mesh(
+        &app.sim,
+        &t,
+        egui::TextureId::default(),
+        &[],
+        WaterLook::Particles,
+    );
     let rigid = app
         .sim
         .boundary_bodies()

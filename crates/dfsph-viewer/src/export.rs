@@ -52,18 +52,20 @@ pub fn timestamped_file(dir: &Path, ext: &str) -> PathBuf {
 }
 
 /// The browser's screenshot: the simulation drawn by `dfsph2d run`'s CPU rasteriser in the
-/// viewer's colouring (`field`), with its
+/// viewer's colouring (`field`) and look (`look`), with its
 /// time stamped, downloaded as `dfsph2d-YYYYMMDD-HHMMSS.png`. Returns the name.
 #[cfg(target_arch = "wasm32")]
 pub fn download_rendered_png(
     sim: &dfsph::Simulation,
     field: dfsph_io::render::FrameField,
+    look: dfsph_io::render::WaterLook,
 ) -> anyhow::Result<String> {
     use dfsph_io::render::{render_frame, stamp_time, RenderGeometry, RenderOptions};
     let options = RenderOptions {
         width: crate::video::FRAME_WIDTH,
         field,
         scale_max: dfsph_io::render::field_scale(sim.scene(), field),
+        look,
     };
     let mut picture = render_frame(&RenderGeometry::of(sim), &sim.snapshot(), &options)?;
     stamp_time(&mut picture, sim.time(), 2);

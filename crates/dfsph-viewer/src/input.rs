@@ -45,6 +45,7 @@ pub const KEY_HELP: &[(&str, &str)] = &[
          (drawn walls go)",
     ),
     ("C", "cycle the colouring (speed, density, pressure)"),
+    ("P", "water as particles (dots) / as a surface"),
     (
         "] / [",
         "finer / coarser particles: twice / half as many (restarts the scene)",
@@ -164,6 +165,8 @@ pub enum Command {
     LoadScene(usize),
     /// Switch to the next colouring.
     CycleColoring,
+    /// Draw the water as dots or as a surface.
+    ToggleLook,
     /// Save a screenshot to the current directory.
     Screenshot,
     /// Start or stop recording a video into the current directory.
@@ -481,6 +484,9 @@ impl InputMapper {
         // Two presses within one slow frame are two steps.
         for _ in 0..input.num_presses(Key::C) {
             out.push(Command::CycleColoring);
+        }
+        for _ in 0..input.num_presses(Key::P) {
+            out.push(Command::ToggleLook);
         }
         if input.key_pressed(Key::F12) {
             out.push(Command::Screenshot);
@@ -826,6 +832,7 @@ mod tests {
             (Key::Num1, Command::LoadScene(0)),
             (Key::Num2, Command::LoadScene(1)),
             (Key::C, Command::CycleColoring),
+            (Key::P, Command::ToggleLook),
             (Key::F12, Command::Screenshot),
             (Key::V, Command::ToggleRecording),
             (Key::H, Command::ToggleHelp),
@@ -1198,6 +1205,7 @@ mod tests {
             "R",
             "1",
             "C",
+            "P",
             "F12",
             "V",
             "H or ?",

@@ -7,6 +7,7 @@ use dfsph::rigid::spec::BODY_DENSITY_RANGE;
 use dfsph::rigid::MAX_BODIES;
 use dfsph::scene::{BodyShape, Method, BUILTIN_SCENES};
 use dfsph::{Action, Simulation};
+use dfsph_io::render::WaterLook;
 use eframe::egui::{self, Slider};
 
 use crate::input::{Command, InputMapper, PrimaryTool, MAX_TILT_DEG};
@@ -34,6 +35,8 @@ pub struct PanelState<'a> {
     /// Simulated seconds per wall second asked for.
     pub time_scale: &'a mut f64,
     pub coloring: &'a mut Coloring,
+    /// The water as a surface or as dots.
+    pub look: &'a mut WaterLook,
     /// The colour scale of each colouring, in [`Coloring::ALL`] order.
     pub scales: &'a mut [ColorScale; 3],
     /// The view shows the whole tank (no zoom or pan).
@@ -337,6 +340,18 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
             .position(|c| c == st.coloring)
             .unwrap_or(0);
         color_scale(ui, &mut st.scales[i]);
+        let mut dots = *st.look == WaterLook::Particles;
+        if ui
+            .checkbox(&mut dots, "water as particles (P)")
+            .on_hover_text("Off: the water is drawn as one surface; on: one dot per particle")
+            .changed()
+        {
+            *st.look = if dots {
+                WaterLook::Particles
+            } else {
+                WaterLook::Surface
+            };
+        }
     });
     out
 }

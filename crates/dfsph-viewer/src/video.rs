@@ -23,7 +23,7 @@ use anyhow::Result;
 #[cfg(not(target_arch = "wasm32"))]
 use anyhow::{anyhow, Context as _};
 use dfsph::{Simulation, Snapshot};
-use dfsph_io::render::{FrameField, RenderGeometry, RenderOptions};
+use dfsph_io::render::{FrameField, RenderGeometry, RenderOptions, WaterLook};
 use dfsph_io::video::{GifWriter, Mp4Writer};
 
 /// Simulated time between recorded frames, s: 25 frames per simulated second.
@@ -92,7 +92,13 @@ impl VideoRecorder {
 
     /// Start recording into `dir` (with the simulation's current state as the first frame),
     /// or stop. Returns what to tell the user.
-    pub fn toggle(&mut self, sim: &Simulation, dir: &Path, field: FrameField) -> String {
+    pub fn toggle(
+        &mut self,
+        sim: &Simulation,
+        dir: &Path,
+        field: FrameField,
+        look: WaterLook,
+    ) -> String {
         if self.recording.is_some() {
             self.stop(sim.time());
             return "recording stopped; finishing the video…".into();
@@ -104,6 +110,7 @@ impl VideoRecorder {
             width: FRAME_WIDTH,
             field,
             scale_max: dfsph_io::render::field_scale(sim.scene(), field),
+            look,
         };
         let dir = dir.to_path_buf();
         let spawned = std::thread::Builder::new()
@@ -366,7 +373,13 @@ impl VideoRecorder {
 
     /// Start recording (with the simulation's current state as the first frame), or stop and
     /// download the GIF. Returns what to tell the user. (`_dir`: the page has none.)
-    pub fn toggle(&mut self, sim: &Simulation, _dir: &Path, field: FrameField) -> String {
+    pub fn toggle(
+        &mut self,
+        sim: &Simulation,
+        _dir: &Path,
+        field: FrameField,
+        look: WaterLook,
+    ) -> String {
         if let Some(recording) = self.recording.take() {
             return download(recording, sim.time());
         }
@@ -374,6 +387,7 @@ impl VideoRecorder {
             width: FRAME_WIDTH,
             field,
             scale_max: dfsph_io::render::field_scale(sim.scene(), field),
+            look,
         };
         let gif = GifWriter::in_memory().for_field(field);
         let mut encoder = FrameEncoder::new(gif, None, options);
@@ -469,10 +483,10 @@ mod tests {
             let dir = tempfile::tempdir().unwrap();
             let mut sim = sim();
             let mut rec = VideoRecorder::default();
-            rec.toggle(&sim, dir.path(), field);
+            rec.toggle(&sim, dir.path(), field, WaterLook::Surface);
             sim.step();
             rec.capture(&sim);
-            rec.toggle(&sim, dir.path(), field);
+            rec.toggle(&sim, dir.path(), field, WaterLook::Surface);
             for _ in 0..500 {
                 if rec.poll().is_some() {
                     break;
@@ -505,13 +519,13 @@ mod tests {
         // Someone's file of the name the recording would take is kept.
         let taken = crate::export::timestamped_file(dir.path(), "gif");
         std::fs::write(&taken, "mine").unwrap();
-        rec.toggle(&sim, dir.path(), FrameField::Speed);
+        rec.toggle(&sim, dir.path(), FrameField::Speed, WaterLook::Surface);
         assert!(rec.is_recording());
         while sim.time() < 0.2 {
             sim.step();
             rec.capture(&sim);
         }
-        rec.toggle(&sim, dir.path(), FrameField::Speed);
+        rec.toggle(&sim, dir.path(), FrameField::Speed, WaterLook::Surface);
         assert!(!rec.is_recording());
         let mut said = None;
         for _ in 0..500 {
@@ -574,6 +588,7 @@ mod tests {
             width: 100,
             field: dfsph_io::render::FrameField::Speed,
             scale_max: None,
+            look: WaterLook::Surface,
         };
         let saved = encode(rx, dir.path(), options, None).unwrap();
         assert_eq!(saved.len(), 1, "{saved:?}");
@@ -604,13 +619,13 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let mut sim = sim();
         let mut rec = VideoRecorder::default();
-        rec.toggle(&sim, dir.path(), FrameField::Speed);
+        rec.toggle(&sim, dir.path(), FrameField::Speed, WaterLook::Surface);
         while sim.time() < 1.0 {
             sim.step();
             rec.capture(&sim);
         }
         let end = sim.time();
-        rec.toggle(&sim, dir.path(), FrameField::Speed);
+        rec.toggle(&sim, dir.path(), FrameField::Speed, WaterLook::Surface);
         let delays = finished_gif(&mut rec, dir.path());
         assert!(delays.len() <= 27, "{delays:?}");
         // The recorded time, plus at most one interval for the last frame (the state at the
