@@ -166,8 +166,16 @@ fn view(args: ViewArgs) -> Result<(), Failure> {
     // The built-in scene a bare `dfsph2d` opens is fitted to this machine; a named one keeps
     // its resolution.
     let fit = args.scene.is_none();
-    view::open(scene, args.exit_after, args.save_on_exit, args.record, fit)
-        .map_err(Failure::runtime)
+    let scene_file = args.scene.as_deref().and_then(view::scene_file_name);
+    view::open(
+        scene,
+        scene_file,
+        args.exit_after,
+        args.save_on_exit,
+        args.record,
+        fit,
+    )
+    .map_err(Failure::runtime)
 }
 
 fn run(args: RunArgs) -> Result<(), Failure> {

@@ -5,10 +5,12 @@ use std::path::PathBuf;
 use anyhow::Result;
 use dfsph::Scene;
 
-/// Open the viewer on `scene`; returns when the window closes. `fit_to_machine`: the
-/// scene's particle size is fitted to this machine's speed ([`dfsph_viewer::resolution`]).
+/// Open the viewer on `scene`, read from the file `scene_file` (`None`: a built-in scene);
+/// returns when the window closes. `fit_to_machine`: the scene's particle size is fitted to
+/// this machine's speed ([`dfsph_viewer::resolution`]).
 pub fn open(
     scene: Scene,
+    scene_file: Option<String>,
     exit_after: Option<f64>,
     save_on_exit: Option<PathBuf>,
     record: Option<PathBuf>,
@@ -20,5 +22,34 @@ pub fn open(
         save_on_exit,
         record,
         fit_to_machine,
+        scene_file,
     })
+}
+
+/// The name the scene list shows for the SCENE argument `arg`: its file name, or `None` for
+/// a built-in scene (a built-in name wins over a file of that name, as when loading).
+pub fn scene_file_name(arg: &str) -> Option<String> {
+    if dfsph::scene::builtin(arg).is_some() {
+        return None;
+    }
+    let path = std::path::Path::new(arg);
+    Some(
+        path.file_name()
+            .map_or(arg.to_string(), |f| f.to_string_lossy().into_owned()),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_scene_list_names_a_file_by_its_name_and_a_built_in_scene_not_at_all() {
+        assert_eq!(scene_file_name("dam-break"), None);
+        assert_eq!(
+            scene_file_name("scenes/my tank.json").as_deref(),
+            Some("my tank.json")
+        );
+        assert_eq!(scene_file_name("./dam-break").as_deref(), Some("dam-break"));
+    }
 }

@@ -24,6 +24,7 @@ use crate::render::{self, ColorScale, Coloring, ViewTransform};
 use crate::resolution;
 use crate::scene_file::{self, SceneOpener};
 use crate::stepper::Stepper;
+use crate::undo::{self, UndoHistory};
 use crate::video::VideoRecorder;
 use crate::view::{self, Camera, Layout};
 use crate::ViewerOptions;
@@ -181,6 +182,8 @@ pub struct ViewerApp {
     look: WaterLook,
     /// The surface's raster and texture.
     surface: render::SurfaceLayer,
+    /// The walls drawn and the water poured, for undo.
+    undo: UndoHistory,
     /// The colour scale of each colouring, in [`Coloring::ALL`] order.
     scales: [ColorScale; 3],
     /// The shown field's values (one per fluid particle) and scratch room for percentiles.
@@ -286,12 +289,13 @@ impl ViewerApp {
             sim: Stepper::with_threads(sim, threads),
             requested_max_particles,
             loaded,
-            opened_file: None,
+            opened_file: opts.scene_file,
             opener: SceneOpener::default(),
             paused: false,
             coloring: Coloring::default(),
             look: WaterLook::default(),
             surface: render::SurfaceLayer::default(),
+            undo: UndoHistory::default(),
             scales,
             values: Vec::new(),
             scratch: Vec::new(),
@@ -422,6 +426,7 @@ impl ViewerApp {
                     .reset(self.sim.gravity(), 2.0 * self.sim.particle_radius());
                 self.radius_edit = self.sim.scene().particle_radius;
                 self.history.clear();
+                self.undo.clear();
                 self.restart_scales();
                 self.probes_read = None;
                 ctx.send_viewport_cmd(ViewportCommand::Title(window_title(self.sim.scene())));
@@ -509,7 +514,9 @@ impl ViewerApp {
     fn apply(&mut self, ctx: &egui::Context, cmd: Command) {
         match cmd {
             Command::Sim(action) => {
+                self.undo.before(&self.sim, &action);
                 let outcome = self.sim.apply(&action);
+                self.undo.after(&self.sim, &action, &outcome);
                 match &action {
                     Action::GrabBody { at } => {
                         self.grab_anchor = self.sim.dragged_body().and_then(|(k, _)| {
@@ -537,6 +544,25 @@ impl ViewerApp {
                     action,
                 });
             }
+            Command::Undo => match self.undo.pop(&self.sim) {
+                Some(stroke) => {
+                    let action = stroke.undo_action();
+                    let outcome = self.sim.apply(&action);
+                    let said = match stroke {
+                        undo::Stroke::Wall { .. } => "took away the last wall drawn".to_string(),
+                        undo::Stroke::Pour { .. } => {
+                            format!("took away the last pour: {} particles", outcome.removed)
+                        }
+                    };
+                    self.set_status(said);
+                    self.record_action(&action);
+                    self.log.push(LoggedAction {
+                        time: self.sim.time(),
+                        action,
+                    });
+                }
+                None => self.set_status("nothing to undo"),
+            },
             Command::TogglePause => {
                 self.paused = !self.paused;
                 self.sim.reset_pace();
@@ -851,6 +877,7 @@ impl eframe::App for ViewerApp {
                         time_scale: &mut self.time_scale,
                         coloring: &mut self.coloring,
                         look: &mut self.look,
+                        undo: self.undo.last(&self.sim),
                         scales: &mut self.scales,
                         view_fitted: self.camera.is_fitted(),
                         radius_edit: &mut self.radius_edit,
@@ -910,6 +937,7 @@ impl eframe::App for ViewerApp {
             self.apply_view(&cmd, lo, hi, layout.world);
             self.apply(ctx, cmd);
         }
+        self.undo.end_frame(&self.sim);
         // A scene file picked in the dialog or dropped on the window.
         let mut opened = ctx.input(scene_file::dropped_scenes);
         opened.extend(self.opener.update(ctx));

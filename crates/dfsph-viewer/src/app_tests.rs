@@ -462,3 +462,66 @@ fn the_opening_scene_is_fitted_to_a_slow_machine_and_a_chosen_one_is_not() {
     let (_, chosen) = app(coarse("dam-break"));
     assert!(chosen.fit.is_none());
 }
+
+/// Undo takes away the last wall drawn, then the last pour (its particles wherever they
+/// went), each as an action in the log a recording keeps. A reset forgets what could be
+/// undone.
+#[test]
+fn undo_takes_away_the_last_wall_then_the_last_pour_and_is_recorded() {
+    let (ctx, mut app) = app(coarse("dam-break"));
+    let n = app.sim.fluid_count();
+    for at in [3.0, 3.4] {
+        app.apply(
+            &ctx,
+            Command::Sim(Action::Emit {
+                at: Vec2::new(at, 2.0),
+                radius: 0.2,
+                velocity: Vec2::ZERO,
+            }),
+        );
+    }
+    app.undo.end_frame(&app.sim);
+    assert!(app.sim.fluid_count() > n);
+    app.apply(&ctx, Command::Step);
+    app.apply(
+        &ctx,
+        Command::Sim(Action::AddWall {
+            polyline: vec![Vec2::new(2.0, 1.0), Vec2::new(3.0, 1.0)],
+        }),
+    );
+    app.undo.end_frame(&app.sim);
+    assert!(drawn_wall_particles(&app.sim) > 0);
+
+    app.apply(&ctx, Command::Undo);
+    assert_eq!(drawn_wall_particles(&app.sim), 0);
+    assert!(app.sim.fluid_count() > n, "the pour is still there");
+    app.apply(&ctx, Command::Undo);
+    assert_eq!(app.sim.fluid_count(), n);
+    app.apply(&ctx, Command::Undo);
+    assert_eq!(
+        app.status.as_ref().map(|s| s.0.as_str()),
+        Some("nothing to undo")
+    );
+    let undone: Vec<&Action> = app
+        .log
+        .iter()
+        .map(|l| &l.action)
+        .filter(|a| {
+            matches!(
+                a,
+                Action::RemoveDrawnWall { .. } | Action::RemoveParticles { .. }
+            )
+        })
+        .collect();
+    assert_eq!(undone.len(), 2, "{undone:?}");
+
+    app.apply(
+        &ctx,
+        Command::Sim(Action::AddWall {
+            polyline: vec![Vec2::new(2.0, 1.0), Vec2::new(3.0, 1.0)],
+        }),
+    );
+    assert!(app.undo.last(&app.sim).is_some());
+    app.apply(&ctx, Command::Reset);
+    assert_eq!(app.undo.last(&app.sim), None);
+}

@@ -57,6 +57,10 @@ pub const KEY_HELP: &[(&str, &str)] = &[
     ),
     ("Ctrl+O or drop a .json", "open a scene file"),
     (
+        "Ctrl+Z",
+        "undo: take away the last wall drawn or the last water poured",
+    ),
+    (
         "V",
         "record / stop a video (GIF, and MP4 with ffmpeg) into the current directory",
     ),
@@ -167,6 +171,8 @@ pub enum Command {
     CycleColoring,
     /// Draw the water as dots or as a surface.
     ToggleLook,
+    /// Take away the last wall drawn or the last water poured ([`crate::undo`]).
+    Undo,
     /// Save a screenshot to the current directory.
     Screenshot,
     /// Start or stop recording a video into the current directory.
@@ -496,6 +502,9 @@ impl InputMapper {
         }
         if command_pressed(input, Key::O) {
             out.push(Command::OpenScene);
+        }
+        if command_pressed(input, Key::Z) {
+            out.push(Command::Undo);
         }
         if input.key_pressed(Key::V) {
             out.push(Command::ToggleRecording);
@@ -1211,6 +1220,7 @@ mod tests {
             "H or ?",
             "Ctrl+S",
             "Ctrl+O",
+            "Ctrl+Z",
             "B / O",
             "on a body",
         ] {

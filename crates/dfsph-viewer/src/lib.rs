@@ -29,6 +29,7 @@ pub mod share;
 pub mod stepper;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod threads;
+pub mod undo;
 pub mod video;
 pub mod view;
 #[cfg(target_arch = "wasm32")]
@@ -58,6 +59,9 @@ pub struct ViewerOptions {
     /// ([`resolution`]): for the built-in scene the window opens with when none is named;
     /// a scene the user names keeps its resolution.
     pub fit_to_machine: bool,
+    /// The file the scene was read from (`view FILE`): the scene list names it, as after
+    /// Open, rather than the scene's own `name`. `None` for a built-in scene.
+    pub scene_file: Option<String>,
 }
 
 impl ViewerOptions {
@@ -69,6 +73,7 @@ impl ViewerOptions {
             save_on_exit: None,
             record: None,
             fit_to_machine: false,
+            scene_file: None,
         }
     }
 }

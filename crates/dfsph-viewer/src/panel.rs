@@ -37,6 +37,8 @@ pub struct PanelState<'a> {
     pub coloring: &'a mut Coloring,
     /// The water as a surface or as dots.
     pub look: &'a mut WaterLook,
+    /// What undo would take away now, if anything.
+    pub undo: Option<crate::undo::Stroke>,
     /// The colour scale of each colouring, in [`Coloring::ALL`] order.
     pub scales: &'a mut [ColorScale; 3],
     /// The view shows the whole tank (no zoom or pan).
@@ -91,6 +93,17 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
                 .clicked()
             {
                 out.push(Command::Reset);
+            }
+            let undo = st.undo.map_or("nothing to undo".to_string(), |stroke| {
+                format!("Ctrl+Z: take away {}", stroke.label())
+            });
+            if ui
+                .add_enabled(st.undo.is_some(), egui::Button::new("Undo"))
+                .on_hover_text(undo)
+                .on_disabled_hover_text("Nothing to undo: draw a wall or pour water first")
+                .clicked()
+            {
+                out.push(Command::Undo);
             }
         });
         ui.horizontal(|ui| {

@@ -44,6 +44,14 @@ pub enum Action {
     AddWall { polyline: Vec<Vec2> },
     /// Remove fluid and drawn walls (not the tank) within `radius` of `at`.
     Erase { at: Vec2, radius: f32 },
+    /// Remove what is left of the `index`-th wall drawn since the start (0-based, in the
+    /// order drawn; [`Simulation::drawn_wall_count`]): the viewer's undo of a wall. The water
+    /// the wall displaced is not brought back. Refused for an index not drawn yet.
+    RemoveDrawnWall { index: usize },
+    /// Remove the fluid particles whose id lies in `from..to`, wherever they are now: the
+    /// viewer's undo of a pour (poured water takes the next ids in order,
+    /// [`Simulation::next_particle_id`]). Refused when `from > to`.
+    RemoveParticles { from: u32, to: u32 },
     /// Drop a rigid body into the tank ([`crate::rigid`]): validated like a scene's `bodies`
     /// entry; fluid it covers is removed.
     AddBody { body: BodySpec },
@@ -164,6 +172,26 @@ impl Simulation {
                     out.rejected = Some("erase needs a finite position and radius > 0");
                 }
             }
+            Action::RemoveDrawnWall { index } => match self.drawn_wall_body(*index) {
+                Some(body) => {
+                    let keep: Vec<bool> = self.boundary.body.iter().map(|&b| b != body).collect();
+                    let walls = self.boundary.retain(&keep);
+                    if walls > 0 {
+                        self.boundary_changed = true;
+                        self.walls_moved_for_bodies = true;
+                    }
+                    out.boundary_change = -(walls as isize);
+                }
+                None => out.rejected = Some("no such drawn wall"),
+            },
+            Action::RemoveParticles { from, to } => {
+                if from > to {
+                    out.rejected = Some("remove_particles needs from <= to");
+                } else {
+                    let ids = self.fluid.id.clone();
+                    out.removed = self.fluid.retain(|i| !(*from..*to).contains(&ids[i]));
+                }
+            }
             Action::AddBody { body } => {
                 if let Err(e) = self.add_body(body) {
                     out.rejected = Some(e);
@@ -254,6 +282,29 @@ impl Simulation {
             }
             Err(_) => Some(rejection),
         }
+    }
+
+    /// How many walls were drawn since the start ([`Action::AddWall`]), erased or not.
+    pub fn drawn_wall_count(&self) -> usize {
+        self.drawn_walls.len()
+    }
+
+    /// The id the next fluid particle added (poured) will take: the ids of a pour are the
+    /// range from this before it to this after it ([`Action::RemoveParticles`]).
+    pub fn next_particle_id(&self) -> u32 {
+        self.next_id
+    }
+
+    /// The body id of the `index`-th drawn wall: body ids run over the tank, the scene's
+    /// obstacles and rigid bodies, then the walls drawn and the bodies dropped since, in the
+    /// order they came.
+    fn drawn_wall_body(&self, index: usize) -> Option<BodyId> {
+        self.bodies
+            .iter()
+            .enumerate()
+            .filter(|(body, b)| *body > self.scene.obstacles.len() && b.rigid.is_none())
+            .nth(index)
+            .map(|(body, _)| body as BodyId)
     }
 
     /// The shake drive in force, −1 … 1.
@@ -630,6 +681,55 @@ mod tests {
         assert_eq!(out.boundary_change, -wall.boundary_change);
         let tank_after = sim.boundary_bodies().iter().filter(|&&b| b == 0).count();
         assert_eq!(tank_after, tank_particles);
+        sim.step();
+        assert!(sim.positions().iter().all(|p| p.is_finite()));
+    }
+
+    /// Undo in the viewer: a drawn wall taken away whole (the one drawn after it and the
+    /// scene's obstacle stay), a pour's particles taken away by their ids wherever they went.
+    #[test]
+    fn a_drawn_wall_and_a_pours_particles_can_be_taken_away() {
+        let s = with_box("dam-break", 0.05, [2.0, 0.0], [2.2, 0.4]);
+        let mut sim = Simulation::new(&s).unwrap();
+        let count = |sim: &Simulation, body: BodyId| {
+            sim.boundary_bodies().iter().filter(|&&b| b == body).count()
+        };
+        let obstacle = count(&sim, 1);
+        assert_eq!(sim.drawn_wall_count(), 0);
+        let first = sim.apply(&Action::AddWall {
+            polyline: vec![Vec2::new(2.5, 0.5), Vec2::new(3.0, 0.5)],
+        });
+        let second = sim.apply(&Action::AddWall {
+            polyline: vec![Vec2::new(3.2, 1.0), Vec2::new(3.6, 1.0)],
+        });
+        assert_eq!(sim.drawn_wall_count(), 2);
+        let gone = sim.apply(&Action::RemoveDrawnWall { index: 0 });
+        assert_eq!(gone.boundary_change, -first.boundary_change);
+        assert_eq!(count(&sim, 2), 0);
+        assert_eq!(count(&sim, 3) as isize, second.boundary_change);
+        assert_eq!(count(&sim, 1), obstacle);
+        let none = sim.apply(&Action::RemoveDrawnWall { index: 2 });
+        assert_eq!(none.rejected, Some("no such drawn wall"));
+
+        let n = sim.fluid_count();
+        let from = sim.next_particle_id();
+        let poured = sim.apply(&Action::Emit {
+            at: Vec2::new(3.4, 2.0),
+            radius: 0.3,
+            velocity: Vec2::ZERO,
+        });
+        assert!(poured.added > 0);
+        let to = sim.next_particle_id();
+        assert_eq!((to - from) as usize, poured.added);
+        for _ in 0..20 {
+            sim.step();
+        }
+        let undo = sim.apply(&Action::RemoveParticles { from, to });
+        assert_eq!(undo.removed, poured.added);
+        assert_eq!(sim.fluid_count(), n);
+        assert!(sim.snapshot().id.iter().all(|id| !(from..to).contains(id)));
+        let bad = sim.apply(&Action::RemoveParticles { from: 5, to: 4 });
+        assert!(bad.rejected.is_some());
         sim.step();
         assert!(sim.positions().iter().all(|p| p.is_finite()));
     }

@@ -147,6 +147,8 @@ fn action() -> impl Strategy<Value = Option<Action>> {
         (0usize..4, number()).prop_map(move |(l, x)| one_field(&time_step, l, x)
             .map(|time_step| Action::SetTimeStep { time_step })),
         Just(Some(Action::Reset { scene: None })),
+        (0usize..4).prop_map(|index| Some(Action::RemoveDrawnWall { index })),
+        (0u32..6000, 0u32..6000).prop_map(|(from, to)| Some(Action::RemoveParticles { from, to })),
     ]
 }
 
