@@ -155,6 +155,9 @@ pub struct FrameReport {
     pub realtime: f64,
     /// Frames drawn per second.
     pub fps: f64,
+    /// What fitting the scene to this machine did (the HUD's line), if it did
+    /// ([`crate::resolution`]).
+    pub fitted: Option<String>,
 }
 
 /// A frame observer ([`ViewerApp::on_frame`]).
@@ -389,6 +392,7 @@ impl ViewerApp {
                 self.sim_rate.get()
             },
             fps: self.fps.get(),
+            fitted: self.resolution_note.clone(),
         }
     }
 

@@ -73,14 +73,36 @@ pub fn scene_from_fragment(fragment: &str) -> anyhow::Result<Option<Scene>> {
     }
 }
 
-/// The scene a page opens with: the one its address names, or the default dam break with a
-/// note saying why the link's scene was not used.
-pub fn initial_scene(fragment: &str) -> (Scene, Option<String>) {
+/// The scene a page opens with.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InitialScene {
+    pub scene: Scene,
+    /// Why the link's scene was not used, if it was not.
+    pub note: Option<String>,
+    /// The page's own default scene, fitted to this machine as the window's is
+    /// ([`crate::resolution`]); a scene a link names keeps its resolution.
+    pub fit_to_machine: bool,
+}
+
+/// The scene a page opens with: the one its address names, or the default dam break (with a
+/// note saying why the link's scene was not used, when there was one).
+pub fn initial_scene(fragment: &str) -> InitialScene {
     let default = || dfsph::scene::builtin("dam-break").expect("the dam break is built in");
-    match scene_from_fragment(fragment) {
-        Ok(Some(scene)) => (scene, None),
+    let (scene, note) = match scene_from_fragment(fragment) {
+        Ok(Some(scene)) => {
+            return InitialScene {
+                scene,
+                note: None,
+                fit_to_machine: false,
+            }
+        }
         Ok(None) => (default(), None),
         Err(e) => (default(), Some(format!("{e:#}; showing the dam break"))),
+    };
+    InitialScene {
+        scene,
+        note,
+        fit_to_machine: true,
     }
 }
 
@@ -178,10 +200,20 @@ mod tests {
         assert!(bomb.len() < 100_000);
         assert!(msg(&bomb).contains("more than 16 MiB"), "{}", msg(&bomb));
 
-        let (scene, note) = initial_scene("scene=ocean");
-        assert_eq!(scene.name, "dam-break");
-        assert!(note.unwrap().contains("showing the dam break"));
-        assert_eq!(initial_scene(""), (scene, None));
+        let bad_link = initial_scene("scene=ocean");
+        assert_eq!(bad_link.scene.name, "dam-break");
+        assert!(bad_link.note.unwrap().contains("showing the dam break"));
+        assert!(bad_link.fit_to_machine);
+        let plain = initial_scene("");
+        assert_eq!(plain.scene, bad_link.scene);
+        assert_eq!(plain.note, None);
+        assert!(plain.fit_to_machine, "the page's own default is fitted");
+        let named = initial_scene("scene=hydrostatic");
+        assert_eq!(named.scene.name, "hydrostatic");
+        assert!(
+            !named.fit_to_machine,
+            "a scene a link names keeps its resolution"
+        );
         assert!(scene_from_fragment("other=1").unwrap().is_none());
     }
 }

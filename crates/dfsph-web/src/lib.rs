@@ -13,7 +13,8 @@
 //!
 //! The page's address may carry a scene (`#scene=NAME` for a built-in one, `#s=...` for a
 //! shared one: [`dfsph_viewer::share`]). For tests and scripts the page exposes
-//! `window.dfsph2d.state()`: `{particles, time, mean_x, steps, realtime, fps, scene, threads}`
+//! `window.dfsph2d.state()`: `{particles, time, mean_x, steps, realtime, fps, scene, fitted,
+//! threads}`
 //! of the last frame drawn, or `null` before the first.
 //!
 //! On any other target the crate is empty: the host builds it only to run its browser test
@@ -52,7 +53,11 @@ pub fn start() -> Result<(), JsValue> {
         .and_then(|d| d.get_element_by_id(CANVAS_ID))
         .ok_or_else(|| JsValue::from_str(&format!("the page has no #{CANVAS_ID}")))?
         .dyn_into::<web_sys::HtmlCanvasElement>()?;
-    let (scene, note) = share::initial_scene(&web::location_hash());
+    let share::InitialScene {
+        scene,
+        note,
+        fit_to_machine,
+    } = share::initial_scene(&web::location_hash());
     let runner = eframe::WebRunner::new();
     RUNNER.with(|r| *r.borrow_mut() = Some(runner.clone()));
     wasm_bindgen_futures::spawn_local(async move {
@@ -62,7 +67,11 @@ pub fn start() -> Result<(), JsValue> {
                 eframe::WebOptions::default(),
                 Box::new(move |cc| {
                     let failures = Rc::new(RefCell::new(Vec::new()));
-                    let app = ViewerApp::new(cc, ViewerOptions::new(scene), failures)?
+                    let options = ViewerOptions {
+                        fit_to_machine,
+                        ..ViewerOptions::new(scene)
+                    };
+                    let app = ViewerApp::new(cc, options, failures)?
                         .with_note(note)
                         .on_frame(|report| {
                             LAST_FRAME.with(|last| *last.borrow_mut() = Some(report.clone()));
@@ -125,8 +134,9 @@ const MESSAGE_ID: &str = "loading";
 
 /// `window.dfsph2d.state()`: the last frame's particles (fluid count), simulated time (s),
 /// mean x of the fluid (m), steps taken, real-time factor and frames per second, the
-/// scene's name, and the solver's threads (the pool's size; 1 in the single-threaded build);
-/// `null` before the first frame.
+/// scene's name, what fitting the default scene to this machine did (`fitted`: the HUD's
+/// line, `null` until it has), and the solver's threads (the pool's size; 1 in the
+/// single-threaded build); `null` before the first frame.
 #[wasm_bindgen]
 pub fn state() -> JsValue {
     LAST_FRAME.with(|last| {
@@ -145,6 +155,10 @@ pub fn state() -> JsValue {
         set("realtime", r.realtime.into());
         set("fps", r.fps.into());
         set("scene", JsValue::from_str(&r.scene));
+        set(
+            "fitted",
+            r.fitted.as_deref().map_or(JsValue::NULL, JsValue::from_str),
+        );
         #[cfg(feature = "threads")]
         let threads = rayon::current_num_threads();
         #[cfg(not(feature = "threads"))]

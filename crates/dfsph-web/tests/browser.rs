@@ -34,6 +34,9 @@ const RUN_TIMEOUT: Duration = Duration::from_secs(240);
 /// Longest the page's simulated time may stand still before the test gives up on it (a
 /// panic in the page stops it for good; a frame, even in software, takes well under this).
 const STALL: Duration = Duration::from_secs(20);
+/// Wall time the default page has to fit its scene to the machine (it measures over its
+/// first 2.5 s, and may fit up to three times).
+const FIT_WAIT: Duration = Duration::from_secs(30);
 /// The page's background (`index.html`, the viewer's central panel): #12141a.
 const BACKGROUND: [u8; 3] = [0x12, 0x14, 0x1a];
 
@@ -278,6 +281,8 @@ impl Browser {
             time: v["time"].as_f64().unwrap(),
             mean_x: v["mean_x"].as_f64().unwrap(),
             scene: v["scene"].as_str().unwrap_or("").to_string(),
+            fitted: v["fitted"].as_str().map(str::to_string),
+            realtime: v["realtime"].as_f64().unwrap_or(0.0),
             wall: Instant::now(),
         })
     }
@@ -387,6 +392,9 @@ struct State {
     time: f64,
     mean_x: f64,
     scene: String,
+    /// What fitting the default scene to this machine did, once it has.
+    fitted: Option<String>,
+    realtime: f64,
     wall: Instant,
 }
 
@@ -462,10 +470,11 @@ fn the_page_runs_draws_the_water_and_d_shakes_the_tank_right() {
     );
 
     let run_started = Instant::now();
-    let url = format!(
-        "http://127.0.0.1:{}/",
-        serve(site.path().to_path_buf(), false)
-    );
+    let port = serve(site.path().to_path_buf(), false);
+    // The dam break named in the address keeps its resolution: the page's own default is
+    // fitted to the machine (a reset partway), checked last.
+    let url = format!("http://127.0.0.1:{port}/#scene=dam-break");
+    let plain = format!("http://127.0.0.1:{port}/");
     let browser = Browser::start(&chromium, &chromedriver);
 
     // The shaken run: the key goes down at KEY_DOWN_AT s and stays down for HOLD s.
@@ -491,8 +500,9 @@ fn the_page_runs_draws_the_water_and_d_shakes_the_tank_right() {
         .decode(screenshot.as_str().expect("a base64 screenshot"))
         .expect("WebDriver's screenshot is base64");
 
-    // The same scene without the key, up to the same simulated time.
-    browser.open(&url);
+    // The same scene without the key, up to the same simulated time (another query: the
+    // same address with only its fragment would not reload the page).
+    browser.open(&format!("http://127.0.0.1:{port}/?still#scene=dam-break"));
     let mut samples = vec![browser.wait_for_time(0.0, START_TIMEOUT, "reloading")];
     while samples.last().unwrap().time < held.time {
         assert!(
@@ -516,7 +526,7 @@ fn the_page_runs_draws_the_water_and_d_shakes_the_tank_right() {
     // water on a pool of Web Workers.
     let threaded = site.path().join("threads/dfsph_web.js").is_file();
     let isolated = format!(
-        "http://127.0.0.1:{}/",
+        "http://127.0.0.1:{}/#scene=dam-break",
         serve(site.path().to_path_buf(), true)
     );
     browser.open(&isolated);
@@ -526,7 +536,42 @@ fn the_page_runs_draws_the_water_and_d_shakes_the_tank_right() {
     let threads = browser.eval("return window.dfsph2d.state().threads;");
     let isolated_realtime =
         (on.time - start.time) / on.wall.duration_since(start.wall).as_secs_f64();
+
+    // The page's own default scene, fitted to this machine within its first seconds (as
+    // the window's): fewer particles, said on the HUD and in state().fitted; or, on a
+    // machine fast enough, the 5k dam break kept in real time.
+    browser.open(&plain);
+    let opened = browser.wait_for_time(0.0, START_TIMEOUT, "starting the default page");
+    let fitted = loop {
+        let now = browser.state().expect("the page keeps reporting");
+        if now.fitted.is_some() || opened.wall.elapsed() > FIT_WAIT {
+            break now;
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    };
     drop(browser);
+    eprintln!(
+        "browser test: default page after {:.1?}: {} particles (opened with {}), fitted: \
+         {:?}, real-time factor {:.2}",
+        opened.wall.elapsed(),
+        fitted.particles,
+        opened.particles,
+        fitted.fitted,
+        fitted.realtime
+    );
+    match &fitted.fitted {
+        Some(note) => {
+            assert!(
+                fitted.particles < opened.particles,
+                "fitted to more particles: {fitted:?}"
+            );
+            assert!(note.contains("fitted to this machine"), "{note}");
+        }
+        None => assert!(
+            fitted.realtime >= 0.9,
+            "the default page neither fitted its scene nor kept real time: {fitted:?}"
+        ),
+    }
     eprintln!(
         "browser test: isolated page: build {build}, {threads} pool threads, real-time factor \
          {isolated_realtime:.3} (from {:.3} s to {:.3} s)",
