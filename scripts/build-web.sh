@@ -26,9 +26,17 @@ tools="${DFSPH2D_TOOLS:-$HOME/.cache/dfsph2d-tools}"
 bindgen="$tools/bin/wasm-bindgen"
 if ! "$bindgen" --version 2>/dev/null | grep -qx "wasm-bindgen $version"; then
   echo "build-web: installing wasm-bindgen-cli $version into $tools (once; a few minutes)" >&2
-  # Its own lock file first; where a registry mirror lacks a locked version, the newest it has.
-  cargo install wasm-bindgen-cli --version "$version" --locked --root "$tools" --quiet ||
-    cargo install wasm-bindgen-cli --version "$version" --root "$tools" --quiet
+  # Its own lock file first; where a registry mirror lacks a locked version, the newest it
+  # has. cargo's refusal of the first is kept back: it says "error:" for what is a fallback,
+  # and is shown only if the second attempt fails too.
+  if ! locked="$(cargo install wasm-bindgen-cli --version "$version" --locked --root "$tools" --quiet 2>&1)"; then
+    echo "build-web: wasm-bindgen-cli's lock file names versions this registry does not serve; installing it with the newest versions it has" >&2
+    if ! cargo install wasm-bindgen-cli --version "$version" --root "$tools" --quiet; then
+      echo "build-web: the install with its lock file had failed too:" >&2
+      echo "$locked" >&2
+      exit 1
+    fi
+  fi
 fi
 
 # A target directory of its own: this script also runs from inside `cargo test`, which holds
