@@ -25,7 +25,7 @@ version="$(awk '/^name = "wasm-bindgen"$/ { getline; gsub(/[^0-9.]/, ""); print;
 tools="${DFSPH2D_TOOLS:-$HOME/.cache/dfsph2d-tools}"
 bindgen="$tools/bin/wasm-bindgen"
 if ! "$bindgen" --version 2>/dev/null | grep -qx "wasm-bindgen $version"; then
-  echo "build-web: installing wasm-bindgen-cli $version into $tools (once; a few minutes)" >&2
+  echo "build-web: installing wasm-bindgen-cli $version into $tools (once; 2-3 minutes on 2 cores)" >&2
   # Its own lock file first; where a registry mirror lacks a locked version, the newest it
   # has. cargo's refusal of the first is kept back: it says "error:" for what is a fallback,
   # and is shown only if the second attempt fails too.
