@@ -337,23 +337,20 @@ fn non_negative_seconds(text: &str) -> Result<f64, String> {
 
 /// `--color-by`: one of the names of [`dfsph_io::render::FrameField::NAMES`].
 fn color_by(name: &str) -> Result<dfsph_io::render::FrameField, String> {
-    dfsph_io::render::FrameField::from_name(name).ok_or_else(|| {
-        let names: Vec<&str> = dfsph_io::render::FrameField::NAMES
-            .iter()
-            .map(|(n, _)| *n)
-            .collect();
-        format!("{name:?} is not a field; one of {}", names.join(", "))
-    })
+    one_of(&dfsph_io::render::FrameField::NAMES, "a field", name)
 }
 
 /// `--look`: one of the names of [`dfsph_io::render::WaterLook::NAMES`].
 fn look(name: &str) -> Result<dfsph_io::render::WaterLook, String> {
-    dfsph_io::render::WaterLook::from_name(name).ok_or_else(|| {
-        let names: Vec<&str> = dfsph_io::render::WaterLook::NAMES
-            .iter()
-            .map(|(n, _)| *n)
-            .collect();
-        format!("{name:?} is not a look; one of {}", names.join(", "))
+    one_of(&dfsph_io::render::WaterLook::NAMES, "a look", name)
+}
+
+/// The value `name` stands for in `names`, or a message that lists them all (`what`: what
+/// a name names, "a field").
+fn one_of<T: Copy>(names: &[(&str, T)], what: &str, name: &str) -> Result<T, String> {
+    dfsph_io::render::by_name(names, name).ok_or_else(|| {
+        let all: Vec<&str> = names.iter().map(|(n, _)| *n).collect();
+        format!("{name:?} is not {what}; one of {}", all.join(", "))
     })
 }
 

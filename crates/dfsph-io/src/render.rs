@@ -124,10 +124,7 @@ impl FrameField {
 
     /// The field named `name` (`speed`, `pressure`, `density`).
     pub fn from_name(name: &str) -> Option<Self> {
-        Self::NAMES
-            .iter()
-            .find(|(n, _)| *n == name)
-            .map(|&(_, f)| f)
+        by_name(&Self::NAMES, name)
     }
 }
 
@@ -150,11 +147,13 @@ impl WaterLook {
 
     /// The look named `name` (`surface`, `particles`).
     pub fn from_name(name: &str) -> Option<Self> {
-        Self::NAMES
-            .iter()
-            .find(|(n, _)| *n == name)
-            .map(|&(_, l)| l)
+        by_name(&Self::NAMES, name)
     }
+}
+
+/// The value `name` stands for in a table of names (a command-line choice).
+pub fn by_name<T: Copy>(names: &[(&str, T)], name: &str) -> Option<T> {
+    names.iter().find(|(n, _)| *n == name).map(|&(_, v)| v)
 }
 
 /// How to draw.

@@ -550,20 +550,17 @@ impl ViewerApp {
             }
             Command::Undo => match self.undo.pop(&self.sim) {
                 Some(stroke) => {
-                    let action = stroke.undo_action();
-                    let outcome = self.sim.apply(&action);
+                    // Applied, recorded and logged as any other action.
+                    let before = self.sim.fluid_count();
+                    self.apply(ctx, Command::Sim(stroke.undo_action()));
                     let said = match stroke {
                         undo::Stroke::Wall { .. } => "took away the last wall drawn".to_string(),
-                        undo::Stroke::Pour { .. } => {
-                            format!("took away the last pour: {} particles", outcome.removed)
-                        }
+                        undo::Stroke::Pour { .. } => format!(
+                            "took away the last pour: {} particles",
+                            before.saturating_sub(self.sim.fluid_count())
+                        ),
                     };
                     self.set_status(said);
-                    self.record_action(&action);
-                    self.log.push(LoggedAction {
-                        time: self.sim.time(),
-                        action,
-                    });
                 }
                 None => self.set_status("nothing to undo"),
             },
