@@ -32,11 +32,7 @@ pub fn scene_file_name(arg: &str) -> Option<String> {
     if dfsph::scene::builtin(arg).is_some() {
         return None;
     }
-    let path = std::path::Path::new(arg);
-    Some(
-        path.file_name()
-            .map_or(arg.to_string(), |f| f.to_string_lossy().into_owned()),
-    )
+    Some(dfsph_viewer::scene_file::file_label(arg))
 }
 
 #[cfg(test)]

@@ -475,11 +475,7 @@ impl ViewerApp {
         match opened.scene {
             Ok(scene) => {
                 if self.load_as_loaded(ctx, scene) {
-                    let file = std::path::Path::new(&opened.name)
-                        .file_name()
-                        .map(|f| f.to_string_lossy().into_owned())
-                        .unwrap_or_else(|| opened.name.clone());
-                    self.opened_file = Some(file);
+                    self.opened_file = Some(scene_file::file_label(&opened.name));
                     self.set_status(format!("opened {}", opened.name));
                 }
             }

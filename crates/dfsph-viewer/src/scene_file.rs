@@ -14,6 +14,14 @@ use eframe::egui;
 #[cfg(not(target_arch = "wasm32"))]
 use egui_file_dialog::{DialogState, FileDialog};
 
+/// What the scene list calls a scene read from the file `name` (a path as given): the file's
+/// own name, without its directory.
+pub fn file_label(name: &str) -> String {
+    std::path::Path::new(name)
+        .file_name()
+        .map_or_else(|| name.to_string(), |f| f.to_string_lossy().into_owned())
+}
+
 /// The particle radius slider's range, m: what the scene validator accepts for this tank
 /// ([`Scene::particle_radius_limits`]), raised to where the fluid blocks would hold about
 /// `max_particles` and lowered to where the narrowest block is one spacing wide (both

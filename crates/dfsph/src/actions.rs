@@ -175,12 +175,7 @@ impl Simulation {
             Action::RemoveDrawnWall { index } => match self.drawn_wall_body(*index) {
                 Some(body) => {
                     let keep: Vec<bool> = self.boundary.body.iter().map(|&b| b != body).collect();
-                    let walls = self.boundary.retain(&keep);
-                    if walls > 0 {
-                        self.boundary_changed = true;
-                        self.walls_moved_for_bodies = true;
-                    }
-                    out.boundary_change = -(walls as isize);
+                    out.boundary_change = -(self.remove_boundary(&keep) as isize);
                 }
                 None => out.rejected = Some("no such drawn wall"),
             },
@@ -299,12 +294,16 @@ impl Simulation {
     /// obstacles and rigid bodies, then the walls drawn and the bodies dropped since, in the
     /// order they came.
     fn drawn_wall_body(&self, index: usize) -> Option<BodyId> {
-        self.bodies
-            .iter()
-            .enumerate()
-            .filter(|(body, b)| *body > self.scene.obstacles.len() && b.rigid.is_none())
+        (0..self.bodies.len())
+            .filter(|&body| self.is_drawn_wall(body))
             .nth(index)
-            .map(|(body, _)| body as BodyId)
+            .map(|body| body as BodyId)
+    }
+
+    /// Whether body id `body` is a wall drawn since the start: not the tank (0), not one of
+    /// the scene's obstacles (the ids after it), not a rigid body.
+    pub(crate) fn is_drawn_wall(&self, body: usize) -> bool {
+        body > self.scene.obstacles.len() && self.bodies[body].rigid.is_none()
     }
 
     /// The shake drive in force, −1 … 1.
@@ -504,12 +503,18 @@ impl Simulation {
                     || (b.position[k] - at).length_squared() >= r2
             })
             .collect();
-        let walls = self.boundary.retain(&keep);
+        (removed, self.remove_boundary(&keep))
+    }
+
+    /// Keep the boundary particles whose `keep` entry is true; returns how many went. The
+    /// walls' volumes and the rigid bodies' walls are brought up to date at the next step.
+    fn remove_boundary(&mut self, keep: &[bool]) -> usize {
+        let walls = self.boundary.retain(keep);
         if walls > 0 {
             self.boundary_changed = true;
             self.walls_moved_for_bodies = true;
         }
-        (removed, walls)
+        walls
     }
 }
 

@@ -62,9 +62,8 @@ impl Simulation {
             .bodies
             .iter()
             .enumerate()
-            .map(|(body, b)| {
-                let wall = body > self.scene.obstacles.len() && b.rigid.is_none();
-                drawn += wall as usize;
+            .map(|(body, _)| {
+                drawn += self.is_drawn_wall(body) as usize;
                 drawn.saturating_sub(1)
             })
             .collect();
