@@ -1,6 +1,6 @@
-//! How a dam break drains, by hand: the built-in dam break's geometry (a column a = 1 m
-//! wide and 2a high in a 4 m × 3 m tank, n² = 2) at particle radius R, with the general
-//! defaults (EXTRA is appended to the scene's JSON object, e.g.
+//! How a dam break drains, by hand: the validation's dam break (a column a = 1 m wide and
+//! 2a high, n² = 2, in a tank 18 m × 3 m, long enough that no wave comes back) at particle
+//! radius R, with the general defaults (EXTRA is appended to the scene's JSON object, e.g.
 //! `, "packing": "square", "solver": {"pressure_solve": "jacobi"}` for the built-in scene's
 //! own settings).
 //!
@@ -30,7 +30,7 @@ fn main() {
     };
     let extra = a.get(2).cloned().unwrap_or_default();
     let scene = Scene::from_json(&format!(
-        r#"{{"particle_radius": {r}, "tank": {{"min": [0, 0], "max": [4, 3]}},
+        r#"{{"particle_radius": {r}, "tank": {{"min": [0, 0], "max": [18, 3]}},
             "fluid": [{{"min": [0, 0], "max": [1, 2]}}] {extra}}}"#
     ))
     .unwrap_or_else(|e| {
