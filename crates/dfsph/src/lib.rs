@@ -27,6 +27,7 @@
 pub mod actions;
 pub mod blocked;
 pub mod boundary;
+pub mod displacement;
 pub mod forces;
 pub mod kernel;
 pub(crate) mod lockstep;

@@ -499,7 +499,7 @@ fn push_near(
 
 #[cfg(target_arch = "x86_64")]
 mod avx512 {
-    use crate::blocked::avx512::{deinterleave, indices_from};
+    use crate::simd::avx512::{deinterleave, indices_from};
     use glam::Vec2;
     use std::arch::x86_64::*;
 

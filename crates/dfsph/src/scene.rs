@@ -5,11 +5,15 @@
 
 use serde::{Deserialize, Serialize};
 
-pub use crate::probes::Probe;
-pub use crate::rigid::spec::{BodyJoint, BodyShape, BodySpec};
+pub(crate) mod error;
+mod probe;
+pub(crate) mod shapes;
 
-/// A point or vector in metres (or m/s², for gravity), as `[x, y]` in JSON.
-pub type Point = [f64; 2];
+pub use crate::rigid::spec::{BodyJoint, BodyShape, BodySpec};
+pub use error::SceneError;
+pub(crate) use error::{finite, invalid, point};
+pub use probe::Probe;
+pub use shapes::{Obstacle, Point, Tank};
 
 /// A complete scene. `Default` is the built-in dam break.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -58,39 +62,6 @@ pub struct Scene {
     pub probes: Vec<Probe>,
 }
 
-/// The tank interior `[min, max]` in metres.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Tank {
-    /// Lower-left corner of the interior, metres.
-    pub min: Point,
-    /// Upper-right corner of the interior, metres.
-    pub max: Point,
-}
-
-impl Tank {
-    /// The largest |coordinate| of the tank's corners, m, and the key that names it
-    /// (`tank.min[0]` … `tank.max[1]`).
-    pub fn farthest_coordinate(&self) -> (f64, String) {
-        let corners = [("min", self.min), ("max", self.max)];
-        let mut best = (0.0f64, "tank.max[0]".to_string());
-        for (name, corner) in corners {
-            for (axis, v) in corner.iter().enumerate() {
-                if v.abs() > best.0 {
-                    best = (v.abs(), format!("tank.{name}[{axis}]"));
-                }
-            }
-        }
-        best
-    }
-
-    /// Coordinates closer than this count as equal when a scene places something on or
-    /// inside the tank's boundary (1e-9 of its larger side: rounding in a scene file), m.
-    pub fn edge_tolerance(&self) -> f64 {
-        1.0e-9 * (self.max[0] - self.min[0]).max(self.max[1] - self.min[1])
-    }
-}
-
 /// A rectangle of fluid. Particle centres lie at `min + d/2 + (i, j)·d` inside it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -131,19 +102,6 @@ impl ParticleList {
     pub fn velocity(&self, i: usize) -> Point {
         self.velocities.get(i).copied().unwrap_or([0.0, 0.0])
     }
-}
-
-/// A static obstacle, sampled with boundary particles two layers thick.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, tag = "type", rename_all = "snake_case")]
-pub enum Obstacle {
-    /// A solid axis-aligned box, metres.
-    Rect { min: Point, max: Point },
-    /// A wall along a polyline through the given points, metres.
-    Polyline { points: Vec<Point> },
-    /// A wall made of the boundary particles listed, metres: what is left of an obstacle or
-    /// a drawn wall after part of it was erased in the viewer (a saved state).
-    Particles { positions: Vec<Point> },
 }
 
 /// The lattice of the initial fluid particles and of the tank's walls. The default is the
@@ -375,54 +333,6 @@ pub const MIN_PARTICLE_DISTANCE: f64 = 1.0e-3;
 /// neighbour lists grow quadratically (see `check_block_overlaps`).
 pub const MAX_CLOSE_PARTICLES: usize = 12;
 
-/// Why a scene was rejected. The message names the offending key (`solver.max_iterations`,
-/// `fluid[1].max`, ...).
-#[derive(Debug, thiserror::Error, Clone, PartialEq)]
-pub enum SceneError {
-    /// The text is not valid JSON or does not match the schema (wrong type, unknown key).
-    #[error("{0}")]
-    Parse(String),
-    /// A value is of the right type but impossible.
-    #[error("`{key}`: {message}")]
-    Invalid { key: String, message: String },
-    /// The scene is valid but needs more memory than this process may use
-    /// ([`crate::memory::MemoryLimits::check`]'s sentence).
-    #[error("{0}")]
-    Memory(String),
-}
-
-pub(crate) fn invalid(key: impl Into<String>, message: impl Into<String>) -> SceneError {
-    SceneError::Invalid {
-        key: key.into(),
-        message: message.into(),
-    }
-}
-
-/// `v` at `key` is a finite number, in the single precision the solver computes in as well
-/// as in the file's double precision: a body's `angle` of 1e39 is finite as read and infinite
-/// as used, and it once removed all the water.
-pub(crate) fn finite(key: &str, v: f64) -> Result<(), SceneError> {
-    if !v.is_finite() {
-        Err(invalid(key, format!("must be a finite number, got {v}")))
-    } else if !(v as f32).is_finite() {
-        Err(invalid(
-            key,
-            format!(
-                "{v} is beyond the solver's single precision (at most {:e} in size)",
-                f32::MAX
-            ),
-        ))
-    } else {
-        Ok(())
-    }
-}
-
-/// Both coordinates of `p` at `key` are finite (`key[0]`, `key[1]` in the error).
-pub(crate) fn point(key: &str, p: Point) -> Result<(), SceneError> {
-    finite(&format!("{key}[0]"), p[0])?;
-    finite(&format!("{key}[1]"), p[1])
-}
-
 /// Water's kinematic viscosity near 20 °C, m²/s.
 pub const WATER_KINEMATIC_VISCOSITY: f64 = 1.0e-6;
 
@@ -592,7 +502,7 @@ impl Scene {
         let placed: Vec<_> = self
             .bodies
             .iter()
-            .map(|b| crate::rigid::placed(b, d))
+            .map(|b| crate::rigid::outline::placed(b, d))
             .collect();
         let key = |i: usize| format!("bodies[{i}].position");
         for i in 0..self.bodies.len() {
@@ -1007,13 +917,13 @@ impl Scene {
         }
         self.check_block_overlaps()?;
         self.check_particles()?;
-        if self.bodies.len() > crate::rigid::MAX_BODIES {
+        if self.bodies.len() > crate::rigid::spec::MAX_BODIES {
             return Err(invalid(
                 "bodies",
                 format!(
                     "{} bodies, more than the {} a scene may have",
                     self.bodies.len(),
-                    crate::rigid::MAX_BODIES
+                    crate::rigid::spec::MAX_BODIES
                 ),
             ));
         }
@@ -1190,7 +1100,7 @@ impl Scene {
             .map(|v| v[0].hypot(v[1]))
             .fold(0.0, f64::max);
         let g = self.gravity[0].hypot(self.gravity[1]);
-        let first_step = crate::simulation::step_displacement_bound(initial_speed, g, d);
+        let first_step = crate::displacement::step_displacement_bound(initial_speed, g, d);
         if t.min > first_step {
             return Err(invalid(
                 "time_step.min",
@@ -1199,8 +1109,8 @@ impl Scene {
                      starting at {initial_speed} m/s under gravity {g} m/s² moves more than \
                      {}·d = {} m and can pass through a wall",
                     t.min,
-                    crate::simulation::MAX_STEP_DISPLACEMENT,
-                    d * f64::from(crate::simulation::MAX_STEP_DISPLACEMENT)
+                    crate::displacement::MAX_STEP_DISPLACEMENT,
+                    d * f64::from(crate::displacement::MAX_STEP_DISPLACEMENT)
                 ),
             ));
         }
@@ -1260,7 +1170,7 @@ impl Scene {
                 format!("{} exceeds the hard limit of 50000000", self.max_particles),
             ));
         }
-        crate::probes::validate(self)?;
+        probe::validate(&self.tank, &self.probes)?;
         Ok(())
     }
 }

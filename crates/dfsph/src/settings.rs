@@ -4,15 +4,7 @@
 
 use crate::scene::Scene;
 
-/// Largest displacement in one step, in particle spacings, before the step is redone. Fluid
-/// at rest sits d/2 inside the tank, and the wall's first layer d/2 outside: a step longer
-/// than d/2 can carry a particle from next to the wall into the wall. At 1 d, `dfsph2d stress
-/// --seed 0` leaked at step 5,202 (a particle thrown into the floor at 19 m/s, 0.69 d in its
-/// last step); at d/2 it passes 20,000 steps. Normal flows rarely come near it (one retry in
-/// 1.5 s of the default dam break, none in the 5k benchmark). A constant as well as a setting:
-/// the scene validator bounds `time_step.min` with it before any simulation exists
-/// ([`crate::simulation::step_displacement_bound`]).
-pub const MAX_STEP_DISPLACEMENT: f32 = 0.5;
+pub use crate::displacement::MAX_STEP_DISPLACEMENT;
 
 /// Largest Δt·√(p/ρ0)/d, p the hydrostatic pressure at the bottom of the water. Against the
 /// pressure of a deep column the symmetric pressure force is a stiff spring on each particle's

@@ -216,6 +216,33 @@ macro_rules! lane_kernel {
 }
 pub(crate) use lane_kernel;
 
+/// AVX-512 building blocks that several kernels share (the pair kernels of
+/// `blocked/avx512.rs`, the neighbour search's).
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod avx512 {
+    use std::arch::x86_64::*;
+
+    /// `(x0, y0, …, x7, y7)` and `(x8, y8, …, x15, y15)` as `(x0 … x15)` and `(y0 … y15)`.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    pub(crate) fn deinterleave(lo: __m512, hi: __m512) -> (__m512, __m512) {
+        let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+        let odd = _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
+        (
+            _mm512_permutex2var_ps(lo, even, hi),
+            _mm512_permutex2var_ps(lo, odd, hi),
+        )
+    }
+
+    /// The 16 consecutive indices `first, first + 1, …, first + 15`.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    pub(crate) fn indices_from(first: u32) -> __m512i {
+        let lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        _mm512_add_epi32(_mm512_set1_epi32(first as i32), lane)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

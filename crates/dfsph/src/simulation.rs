@@ -26,7 +26,8 @@ use crate::viscosity::Viscosity;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-pub use crate::settings::{MAX_STEP_DISPLACEMENT, PRESSURE_WAVE_STABILITY};
+pub use crate::displacement::{step_displacement_bound, MAX_STEP_DISPLACEMENT};
+pub use crate::settings::PRESSURE_WAVE_STABILITY;
 
 /// Diagnostics of one step.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
@@ -1473,24 +1474,6 @@ impl Simulation {
     }
 }
 
-/// The longest Δt in which a particle moving at `speed` (m/s) under an `acceleration` (m/s²)
-/// travels at most [`MAX_STEP_DISPLACEMENT`] particle spacings (`spacing` = d, m):
-/// `speed·Δt + ½·acceleration·Δt² ≤ MAX_STEP_DISPLACEMENT·d`, the positive root
-/// `Δt = 2R / (v + √(v² + 2aR))` with `R = MAX_STEP_DISPLACEMENT·d`. Infinite when nothing
-/// moves or accelerates. Every step is at most this (see `Simulation::step`), so no step
-/// carries water from beside a wall through it; the scene validator refuses a
-/// `time_step.min` above it at the start (the blocks' initial speeds under gravity).
-pub fn step_displacement_bound(speed: f64, acceleration: f64, spacing: f64) -> f64 {
-    let reach = f64::from(MAX_STEP_DISPLACEMENT) * spacing;
-    let speed = speed.max(0.0);
-    let denominator = speed + (speed * speed + 2.0 * acceleration.max(0.0) * reach).sqrt();
-    if denominator > 0.0 {
-        2.0 * reach / denominator
-    } else {
-        f64::INFINITY
-    }
-}
-
 /// How far the tank slides when shaken, m.
 pub const MAX_SHAKE_OFFSET: f32 = 0.4;
 /// Natural frequency of the tank's return spring, Hz.
@@ -1511,36 +1494,6 @@ pub fn lattice_kernel_sum(kernel: &Kernel, d: f32) -> f32 {
         }
     }
     sum as f32
-}
-
-/// p/ρ0 of fluid at rest under `gravity` (pointing down the y axis; zero otherwise):
-/// `|g|·(y_s − y)`, where the free surface `y_s` lies half a spacing above the top particle of
-/// the unbroken run of particles above each particle in its column of width `d` (a gap of more
-/// than 2.5 spacings, wider than the hexagonal lattice's two rows, breaks a run: a drop above a
-/// pool does not weigh on it).
-pub fn hydrostatic_pressure(position: &[Vec2], gravity: Vec2, d: f32) -> Vec<f32> {
-    let mut out = vec![0.0; position.len()];
-    if gravity.x != 0.0 || gravity.y >= 0.0 {
-        return out;
-    }
-    let mut columns = std::collections::HashMap::<i64, Vec<usize>>::new();
-    for (i, p) in position.iter().enumerate() {
-        columns.entry((p.x / d).floor() as i64).or_default().push(i);
-    }
-    for (_, mut idx) in columns {
-        idx.sort_by(|&a, &b| position[b].y.total_cmp(&position[a].y));
-        let mut surface = f32::NAN;
-        let mut last = f32::INFINITY;
-        for i in idx {
-            let y = position[i].y;
-            if last - y > 2.5 * d {
-                surface = y + 0.5 * d;
-            }
-            last = y;
-            out[i] = -gravity.y * (surface - y);
-        }
-    }
-    out
 }
 
 pub(crate) fn to_vec2(p: [f64; 2]) -> Vec2 {

@@ -20,61 +20,12 @@
 use crate::par::prelude::*;
 use glam::Vec2;
 
-use crate::blocked::{BlockedPairs, ResidualTerms, LANES};
+use crate::blocked::{ResidualTerms, LANES};
 use crate::kernel::Kernel;
 use crate::neighbors::NeighborLists;
 use crate::particles::{BoundaryParticles, FluidParticles};
 use crate::step::StepContext;
-
-/// What [`density_and_factor`] caches for the rest of a step, valid while positions do not
-/// change.
-#[derive(Clone, Debug, Default)]
-pub struct PairCache {
-    /// `∇W_ib` per fluid–boundary pair, in list order.
-    pub boundary_grad: Vec<Vec2>,
-    /// Per particle, `Σ_j V_j ∇W_ij + Σ_b Ψ_b ∇W_ib`: what a uniform κ or velocity sees.
-    pub grad_sum: Vec<Vec2>,
-    /// Per particle, `Σ_b Ψ_b v_b·∇W_ib`: the walls' share of the density rate (walls keep
-    /// their velocity for the whole step).
-    pub wall_flux: Vec<f32>,
-    /// Neighbour indices and `∇W_ij` of the fluid–fluid pairs, in blocks of 16 particles for
-    /// the solver's SIMD passes.
-    pub blocks: BlockedPairs,
-}
-
-/// Read-only view of one step's neighbourhoods: lists and the kernel gradients cached for
-/// every pair, valid while positions do not change.
-#[derive(Clone, Copy)]
-pub struct Neighborhood<'a> {
-    /// Fluid–fluid lists (self excluded); their `∇W_ij` are in `blocks`.
-    pub fluid: &'a NeighborLists,
-    /// Fluid–boundary lists and `∇W_ib` per pair.
-    pub boundary: &'a NeighborLists,
-    pub boundary_grad: &'a [Vec2],
-    /// [`PairCache::grad_sum`].
-    pub grad_sum: &'a [Vec2],
-    /// [`PairCache::wall_flux`].
-    pub wall_flux: &'a [f32],
-    /// [`PairCache::blocks`].
-    pub blocks: &'a BlockedPairs,
-}
-
-impl<'a> Neighborhood<'a> {
-    pub fn new(
-        fluid: &'a NeighborLists,
-        boundary: &'a NeighborLists,
-        cache: &'a PairCache,
-    ) -> Self {
-        Self {
-            fluid,
-            boundary,
-            boundary_grad: &cache.boundary_grad,
-            grad_sum: &cache.grad_sum,
-            wall_flux: &cache.wall_flux,
-            blocks: &cache.blocks,
-        }
-    }
-}
+pub use crate::step::{Neighborhood, PairCache};
 
 /// Compute `s_i`, the DFSPH factor, and cache all kernel gradients and the per-particle sums
 /// of [`PairCache`] (TVCG 2017, Alg. 1 lines 2–3).

@@ -2,8 +2,11 @@
 //! kernels' sums in the same order, on `__m512` vectors, reading neighbour values with gather
 //! instructions, plain loads or windows ([`super::Gather`]).
 
-use super::{FluidSums, Gather, SlotIndex, Windows, LANES, WINDOW};
+use super::layout::{
+    BlockedPairs, FluidSums, Gather, ResidualTerms, SlotIndex, Windows, LANES, WINDOW,
+};
 use crate::kernel::{Kernel, KernelShape};
+use crate::simd::avx512::{deinterleave, indices_from};
 use glam::Vec2;
 use std::arch::x86_64::*;
 
@@ -31,7 +34,7 @@ impl<'a> LaneLists<'a> {
                 list => list,
             }),
             lens: std::array::from_fn(|l| lists[l].len() as u32),
-            pad: std::array::from_fn(|l| super::padding(first + l, n)),
+            pad: std::array::from_fn(|l| super::layout::padding(first + l, n)),
             first,
             n,
         }
@@ -419,26 +422,6 @@ unsafe fn split_xy(v: &[Vec2; LANES]) -> (__m512, __m512) {
     deinterleave(_mm512_loadu_ps(flat), _mm512_loadu_ps(flat.add(16)))
 }
 
-/// `(x0, y0, …, x7, y7)` and `(x8, y8, …, x15, y15)` as `(x0 … x15)` and `(y0 … y15)`.
-#[inline]
-#[target_feature(enable = "avx512f")]
-pub(crate) fn deinterleave(lo: __m512, hi: __m512) -> (__m512, __m512) {
-    let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
-    let odd = _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
-    (
-        _mm512_permutex2var_ps(lo, even, hi),
-        _mm512_permutex2var_ps(lo, odd, hi),
-    )
-}
-
-/// The 16 consecutive indices `first, first + 1, …, first + 15`.
-#[inline]
-#[target_feature(enable = "avx512f")]
-pub(crate) fn indices_from(first: u32) -> __m512i {
-    let lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-    _mm512_add_epi32(_mm512_set1_epi32(first as i32), lane)
-}
-
 /// [`super::BlockedPairs::viscosity_sums`], 16 pairs at a time.
 ///
 /// # Safety
@@ -562,11 +545,11 @@ fn negate(x: __m512) -> __m512 {
 #[allow(clippy::too_many_arguments)]
 #[target_feature(enable = "avx512f")]
 pub unsafe fn residual_blocks<I: SlotIndex>(
-    pairs: &super::BlockedPairs,
+    pairs: &BlockedPairs,
     idx: &[I],
     blocks: std::ops::Range<usize>,
     vel: &[Vec2],
-    terms: &super::ResidualTerms,
+    terms: &ResidualTerms,
     delta: &mut [f32],
     rate: &mut [f32],
     errors: &mut [[f32; LANES]],
@@ -601,7 +584,7 @@ pub unsafe fn residual_blocks<I: SlotIndex>(
 #[allow(clippy::too_many_arguments)]
 #[target_feature(enable = "avx512f")]
 pub unsafe fn apply_blocks<I: SlotIndex>(
-    pairs: &super::BlockedPairs,
+    pairs: &BlockedPairs,
     idx: &[I],
     blocks: std::ops::Range<usize>,
     volume: f32,
@@ -649,7 +632,7 @@ pub unsafe fn residual_block<I: SlotIndex>(
     gy: &[f32],
     vel: &[Vec2],
     first: usize,
-    terms: &super::ResidualTerms,
+    terms: &ResidualTerms,
     delta: &mut [f32],
     rate: &mut [f32],
     errors: &mut [f32; LANES],

@@ -9,7 +9,7 @@ use std::ops::Range;
 
 use glam::Vec2;
 
-use super::{BlockedPairs, FluidSums, ResidualTerms, SlotIndex, LANES};
+use super::layout::{BlockedPairs, FluidSums, ResidualTerms, SlotIndex, LANES};
 use crate::kernel::Kernel;
 use crate::simd::mul_add;
 

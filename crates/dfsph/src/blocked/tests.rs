@@ -1,3 +1,4 @@
+use super::layout::WINDOW;
 use super::*;
 use crate::kernel::KernelShape;
 

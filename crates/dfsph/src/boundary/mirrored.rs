@@ -15,7 +15,7 @@
 
 use glam::Vec2;
 
-use super::BoundaryModel;
+use super::model::BoundaryModel;
 
 /// Walls that mirror the fluid's pressure, with its hydrostatic gradient.
 #[derive(Clone, Copy, Debug, Default)]

@@ -31,26 +31,11 @@ use crate::neighbors::Grid;
 
 mod akinci;
 mod mirrored;
+mod model;
 
 pub use akinci::AkinciWalls;
 pub use mirrored::MirroredWalls;
-
-/// How wall particles enter the pressure terms of the fluid next to them. Their share of the
-/// density, `Σ_b Ψ_b W_ib`, is the same in every model.
-pub trait BoundaryModel: Send + Sync {
-    /// What multiplies the walls' share of the gradient sum `Σ_b Ψ_b ∇W_ib` and of the wall
-    /// flux `Σ_b Ψ_b v_b·∇W_ib` (dimensionless): the density rate, the pressure push and the
-    /// DFSPH factor alike, so the pressure operator stays symmetric whatever the weight.
-    fn gradient_weight(&self) -> f32;
-
-    /// The gradient of p/ρ0 (m/s²) that the walls' ghost particles add to the fluid
-    /// particle's own pressure, `p_b = p_i + ρ0·g_p·(x_b − x_i)`, under `gravity`; `None` when
-    /// the ghosts carry the particle's pressure alone.
-    fn hydrostatic_ghost_gradient(&self, gravity: Vec2) -> Option<Vec2> {
-        let _ = gravity;
-        None
-    }
-}
+pub use model::BoundaryModel;
 
 /// Which body a boundary particle belongs to. Body 0 is the tank; every obstacle and drawn wall
 /// is a body of its own so it can be moved or erased as a whole.
@@ -232,12 +217,12 @@ impl BoundarySamples {
     /// ([`Self::add_hexagonal_rect`]), as the tank is.
     pub fn add_obstacle(
         &mut self,
-        obstacle: &crate::scene::Obstacle,
+        obstacle: &crate::scene::shapes::Obstacle,
         d: f32,
         hexagonal_anchor: Option<[f64; 2]>,
         body: BodyId,
     ) {
-        use crate::scene::Obstacle;
+        use crate::scene::shapes::Obstacle;
         let v = |p: &[f64; 2]| Vec2::new(p[0] as f32, p[1] as f32);
         match obstacle {
             Obstacle::Rect { min, max } => match hexagonal_anchor {

@@ -52,7 +52,7 @@ use glam::Vec2;
 
 use super::deflation::{CoarseSpace, COLOURS, MIN_CELL_SUPPORTS};
 use super::jacobi::{self, JacobiScratch};
-use super::{PressureSolver, SolveReport};
+use super::solve::{PressureSolver, SolveReport};
 use crate::boundary::{BoundaryModel, MirroredWalls};
 use crate::parallel::LIGHT_PASS_MIN_ITEMS;
 use crate::particles::FluidParticles;
@@ -105,7 +105,7 @@ impl PressureSolver for ConjugateGradient {
     /// The solve's starting guess for the first step: water at rest then starts in
     /// equilibrium instead of falling into its bottom rows while the pressure builds up.
     fn initial_pressure(&self, position: &[Vec2], gravity: Vec2, d: f32) -> Option<Vec<f32>> {
-        Some(crate::simulation::hydrostatic_pressure(
+        Some(super::hydrostatic::hydrostatic_pressure(
             position, gravity, d,
         ))
     }

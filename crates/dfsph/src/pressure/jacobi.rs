@@ -15,11 +15,11 @@ use crate::par::prelude::*;
 use crate::lockstep::{self, Shared, Team};
 use crate::parallel::LIGHT_PASS_MIN_ITEMS;
 
-use super::{PressureSolver, SolveReport};
+use super::solve::{PressureSolver, SolveReport};
 use crate::blocked::{ResidualTerms, LANES};
 use crate::particles::FluidParticles;
 use crate::reduce;
-use crate::rigid::{BodyVelocity, CoupledBodies};
+use crate::rigid::coupled::{BodyVelocity, CoupledBodies};
 use crate::settings::SolveLimits;
 use crate::step::StepContext;
 use glam::Vec2;

@@ -5,7 +5,7 @@
 
 use crate::par::prelude::*;
 
-use super::{PressureSolver, SolveReport};
+use super::solve::{PressureSolver, SolveReport};
 use crate::particles::FluidParticles;
 use crate::reduce;
 use crate::scene::Scene;

@@ -19,7 +19,8 @@ use coupled::Mobility;
 pub use coupled::{BodyVelocity, CoupledBodies};
 use coupling::BodyImpulse;
 use outline::Outline;
-mod outline;
+pub(crate) use outline::{placed, signed_distance_of};
+pub(crate) mod outline;
 mod sampling;
 pub mod spec;
 
@@ -529,60 +530,6 @@ impl RigidBodies {
             })
             .sum()
     }
-}
-
-/// The signed distance (m, negative inside) to the outline of a body placed by `spec` with
-/// its centre at `centre` (m), before it is added.
-pub(crate) fn signed_distance_of(spec: &BodySpec, centre: Vec2) -> impl Fn(Vec2) -> f32 {
-    let outline = Outline::of(spec);
-    let unrotate = Vec2::from_angle(-(spec.angle as f32));
-    move |p| outline.signed_distance(unrotate.rotate(p - centre))
-}
-
-/// A body placed by `spec` (its centre at `spec.position`, m) as the overlap test sees it:
-/// points along its outline half a spacing apart, and its signed distance.
-pub(crate) struct Placed<F> {
-    pub outline: Vec<Vec2>,
-    pub distance: F,
-}
-
-/// [`Placed`] for the body `spec` at spacing `d` (m).
-pub(crate) fn placed(spec: &BodySpec, d: f32) -> Placed<impl Fn(Vec2) -> f32> {
-    let centre = Vec2::new(spec.position[0] as f32, spec.position[1] as f32);
-    Placed {
-        outline: outline_points(spec, 0.5 * d),
-        distance: signed_distance_of(spec, centre),
-    }
-}
-
-impl<F: Fn(Vec2) -> f32> Placed<F> {
-    /// Whether two bodies overlap: an outline point of either lies more than a quarter
-    /// spacing `d` inside the other. Bodies may touch: a scene file may have one resting on
-    /// another, their boundary particles' balls (radius d/2) meeting.
-    pub fn overlaps(&self, other: &Self, d: f32) -> bool {
-        let inside =
-            |points: &[Vec2], distance: &F| points.iter().any(|&p| distance(p) < -0.25 * d);
-        inside(&self.outline, &other.distance) || inside(&other.outline, &self.distance)
-    }
-}
-
-/// Points along the outline of a body placed by `spec` (m, the tank's frame), at most `step`
-/// (m) apart.
-pub(crate) fn outline_points(spec: &BodySpec, step: f32) -> Vec<Vec2> {
-    let centre = Vec2::new(spec.position[0] as f32, spec.position[1] as f32);
-    let rotate = Vec2::from_angle(spec.angle as f32);
-    let corners: Vec<Vec2> = Outline::of(spec)
-        .vertices()
-        .into_iter()
-        .map(|q| centre + rotate.rotate(q))
-        .collect();
-    let mut points = Vec::new();
-    for (k, &a) in corners.iter().enumerate() {
-        let b = corners[(k + 1) % corners.len()];
-        let n = ((b - a).length() / step).ceil().max(1.0) as usize;
-        points.extend((0..n).map(|i| a.lerp(b, i as f32 / n as f32)));
-    }
-    points
 }
 
 /// Where the tank's kinematic body stands.

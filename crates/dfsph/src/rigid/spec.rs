@@ -5,7 +5,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::scene::{finite, invalid, point, Point, SceneError, Tank};
+use crate::scene::error::{finite, invalid, point, SceneError};
+use crate::scene::shapes::{Point, Tank};
 
 /// Fewest particle spacings a body must measure across: its boundary particles are two layers
 /// thick inside the outline (at d/2 and 3d/2), and thinner the layers would cross.

@@ -8,7 +8,7 @@
 
 use glam::Vec2;
 
-use super::ViscosityModel;
+use super::model::ViscosityModel;
 use crate::kernel::Kernel;
 use crate::scene::ViscosityParams;
 use crate::settings::SolverSettings;

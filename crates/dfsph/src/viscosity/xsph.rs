@@ -4,7 +4,7 @@
 //! neighbours' kernel average each step, which damps particle-scale noise; fluid–fluid pairs
 //! only.
 
-use super::ViscosityModel;
+use super::model::ViscosityModel;
 use crate::scene::ViscosityParams;
 
 /// XSPH smoothing with coefficient c.
