@@ -189,7 +189,7 @@ pub fn execute_with(
                     "warning: step {} (t = {:.4} s): {}",
                     b.step,
                     b.time,
-                    crate::terminal_safe(&b.what)
+                    dfsph_io::input::terminal_safe(&b.what)
                 )
             });
         }

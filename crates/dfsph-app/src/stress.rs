@@ -16,7 +16,7 @@ use dfsph::rigid::{BodySpec, RigidBodyState};
 use dfsph::{Action, Scene, Simulation, StepStats, Vec2};
 
 use crate::cli::StressArgs;
-use crate::Failure;
+use crate::failure::Failure;
 use dfsph_io::input::{load_scene, one_line, terminal_safe};
 
 /// The viewer's pour speed, m/s (`dfsph_viewer::input::POUR_SPEED`).
@@ -39,7 +39,7 @@ pub fn command(args: StressArgs) -> Result<(), Failure> {
     }
     let scene = load_scene(&args.scene).map_err(Failure::input)?;
     let scene = budgeted(scene);
-    crate::check_memory(
+    crate::failure::check_memory(
         &format!("scene `{}`", args.scene),
         &scene.memory_estimate_for(scene.max_particles as u64),
         args.max_memory,

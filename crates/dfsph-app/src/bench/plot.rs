@@ -3,7 +3,7 @@
 
 use std::fmt::Write;
 
-use super::{Code, Row};
+use super::types::{Code, Row};
 
 const W: f64 = 720.0;
 const H: f64 = 460.0;

@@ -7,7 +7,7 @@ use dfsph::scene::{self, Method, Scene, TimeStepParams};
 use dfsph::simd::SimdPath;
 use dfsph::{Simulation, Vec2};
 
-use super::{Code, Row, RowArgs, Settings};
+use super::types::{Code, Row, RowArgs, Settings};
 
 /// XSPH coefficient of both codes (dimensionless; our scene default).
 pub const XSPH: f64 = 0.01;
@@ -15,34 +15,6 @@ pub const XSPH: f64 = 0.01;
 pub const FRONT_NEIGHBORS: usize = 3;
 /// Time at which the front is also recorded, s.
 pub const FRONT_CHECK_TIME: f64 = 0.4;
-
-/// Run one row and print it as one JSON line on stdout.
-pub fn run_row(args: RowArgs) -> Result<(), String> {
-    exit_with_parent(args.parent);
-    if let Some(n) = args.threads {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n as usize)
-            .build_global()
-            .map_err(|e| format!("cannot start {n} threads: {e}"))?;
-    }
-    if args.code == Code::Salva2d && args.settings == Settings::Viewer {
-        return Err("salva2d rows run with the benchmark settings only".into());
-    }
-    let baseline = proc_status_bytes("VmRSS").unwrap_or(0);
-    let mut row = match args.code {
-        Code::Dfsph2d => run_dfsph(&args)?,
-        #[cfg(feature = "salva")]
-        Code::Salva2d => super::salva::run(&args)?,
-        #[cfg(not(feature = "salva"))]
-        Code::Salva2d => return Err("salva2d is not compiled into this binary".into()),
-    };
-    row.peak_rss_bytes = proc_status_bytes("VmHWM").unwrap_or(0);
-    row.baseline_rss_bytes = baseline;
-    row.bytes_per_particle =
-        row.peak_rss_bytes.saturating_sub(baseline) as f64 / row.n.max(1) as f64;
-    println!("{}", serde_json::to_string(&row).expect("a row serialises"));
-    Ok(())
-}
 
 /// The benchmark scene: the built-in dam break at spacing `d` with docs/BENCHMARK.md's solver
 /// settings.
@@ -75,7 +47,7 @@ pub fn viewer_scene(d: f64) -> Scene {
     scene
 }
 
-fn run_dfsph(args: &RowArgs) -> Result<Row, String> {
+pub(super) fn run_dfsph(args: &RowArgs) -> Result<Row, String> {
     let scene = match args.settings {
         Settings::Benchmark => bench_scene(args.spacing),
         Settings::Viewer => viewer_scene(args.spacing),
@@ -226,7 +198,7 @@ impl Progress {
 }
 
 /// A `kB` line of `/proc/self/status`, in bytes.
-fn proc_status_bytes(key: &str) -> Option<u64> {
+pub(super) fn proc_status_bytes(key: &str) -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with(key))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
@@ -279,7 +251,7 @@ fn compiled_simd() -> String {
 /// Linux the kernel sends SIGKILL to the row when its parent dies; the row writes no files, so
 /// nothing is left half-written. A parent that died before the request was made is caught by
 /// comparing with the pid the parent passed: under load a row can take a while to get here.
-fn exit_with_parent(parent: Option<u32>) {
+pub(super) fn exit_with_parent(parent: Option<u32>) {
     #[cfg(target_os = "linux")]
     {
         let parent = parent.unwrap_or_else(std::os::unix::process::parent_id);

@@ -18,7 +18,7 @@ use salva2d::solver::{DFSPHSolver, DfsphParameters, XSPHViscosity};
 use salva2d::LiquidWorld;
 
 use super::row::{base_row, bench_scene, front_of, Progress, FRONT_CHECK_TIME, XSPH};
-use super::{Code, Row, RowArgs};
+use super::types::{Code, Row, RowArgs};
 
 pub fn run(args: &RowArgs) -> Result<Row, String> {
     let scene = bench_scene(args.spacing);

@@ -8,10 +8,10 @@ use anyhow::Result;
 use dfsph::scene::{self, FluidBlock, Method, Probe, Tank};
 use dfsph::Scene;
 
+use super::case::{completion_check, interp, simulate, CaseReport, Check, Settings, Trace};
 use super::data;
 use super::plot::{Plot, Series, Style};
 use super::report::run_table;
-use super::{completion_check, interp, simulate, CaseReport, Check, Settings, Trace};
 
 /// |g|, m/s² (the scenes' default gravity).
 const G: f64 = 9.81;

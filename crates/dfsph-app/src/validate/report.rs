@@ -7,7 +7,7 @@ use std::path::Path;
 
 use anyhow::Result;
 
-use super::{CaseReport, Check, RunInfo, Settings};
+use super::case::{CaseReport, Check, RunInfo, Settings};
 
 /// Write the report to `path` (atomically).
 pub fn write_report(
