@@ -14,14 +14,15 @@
 //! dfsph_viewer::run(dfsph_viewer::ViewerOptions::new(scene)).unwrap();
 //! ```
 
-use std::path::PathBuf;
-
 pub mod app;
 pub mod bodies;
 pub mod export;
+pub mod file_names;
 pub mod hud;
 pub mod input;
+mod options;
 pub mod panel;
+mod panic_message;
 pub mod render;
 pub mod resolution;
 pub mod scene_file;
@@ -29,6 +30,7 @@ pub mod share;
 pub mod stepper;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod threads;
+pub mod ticks;
 pub mod undo;
 pub mod video;
 pub mod view;
@@ -37,53 +39,7 @@ pub mod web;
 #[cfg(not(target_arch = "wasm32"))]
 mod window;
 
+pub use options::ViewerOptions;
+pub use panic_message::panic_message;
 #[cfg(not(target_arch = "wasm32"))]
 pub use window::run;
-
-/// What to show and how long.
-#[derive(Clone, Debug)]
-pub struct ViewerOptions {
-    /// The scene to run.
-    pub scene: dfsph::Scene,
-    /// Close the window after this many seconds of wall time.
-    pub exit_after: Option<f64>,
-    /// When closing because of `exit_after` (and only then), write `particles.csv` (`x,y,vx,vy,density,
-    /// pressure`), `screenshot.png`, `session.json` (run statistics and the applied
-    /// actions) and `scene.json` (the state as a scene that `run` and `view` load) into this
-    /// directory.
-    pub save_on_exit: Option<PathBuf>,
-    /// Record every action with the step at which it applies into this file (JSON lines,
-    /// `docs/recording.md`), for `dfsph2d run SCENE --replay FILE`.
-    pub record: Option<PathBuf>,
-    /// Fit the scene's particle size to this machine's speed in the first seconds
-    /// ([`resolution`]): for the built-in scene the window opens with when none is named;
-    /// a scene the user names keeps its resolution.
-    pub fit_to_machine: bool,
-    /// The file the scene was read from (`view FILE`): the scene list names it, as after
-    /// Open, rather than the scene's own `name`. `None` for a built-in scene.
-    pub scene_file: Option<String>,
-}
-
-impl ViewerOptions {
-    /// Show `scene` until the user closes the window.
-    pub fn new(scene: dfsph::Scene) -> Self {
-        Self {
-            scene,
-            exit_after: None,
-            save_on_exit: None,
-            record: None,
-            fit_to_machine: false,
-            scene_file: None,
-        }
-    }
-}
-
-/// The text of a caught panic (`std::panic::catch_unwind`'s payload): panics raised with a
-/// message carry a `String` or a `&str`; anything else is reported as "unknown panic".
-pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
-    payload
-        .downcast_ref::<String>()
-        .map(String::as_str)
-        .or_else(|| payload.downcast_ref::<&str>().copied())
-        .unwrap_or("unknown panic")
-}

@@ -526,8 +526,8 @@ pub fn legend(
     let text = Color32::from_gray(230);
     let dim = Color32::from_gray(160);
     // Labels with two or three significant digits: "6.8", "0.35", "1200", "12k".
-    let step = crate::hud::nice_step(((hi - lo).abs() as f64 / 60.0).max(1e-9));
-    let fmt = |v: f32| crate::hud::format_tick(v as f64, step);
+    let step = crate::ticks::nice_step(((hi - lo).abs() as f64 / 60.0).max(1e-9));
+    let fmt = |v: f32| crate::ticks::format_tick(v as f64, step);
     let mode = if scale.auto {
         "auto range"
     } else {

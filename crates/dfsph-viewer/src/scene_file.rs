@@ -87,7 +87,7 @@ pub fn write_scene(path: &Path, scene: &Scene) -> anyhow::Result<()> {
 /// Save `scene` as `scene-YYYYMMDD-HHMMSS.json` (UTC) in `dir`, with `-2`, `-3`, ... when
 /// that name is taken; never overwrites a file. Returns the path written.
 pub fn save_timestamped(dir: &Path, scene: &Scene) -> anyhow::Result<PathBuf> {
-    let stem = format!("scene-{}", crate::export::utc_stamp_now());
+    let stem = format!("scene-{}", crate::file_names::utc_stamp_now());
     for k in 1..10_000 {
         let path = match k {
             1 => dir.join(format!("{stem}.json")),
@@ -179,7 +179,7 @@ pub fn save_state(scene: &Scene) -> anyhow::Result<String> {
     }
     #[cfg(target_arch = "wasm32")]
     {
-        let name = format!("scene-{}.json", crate::export::utc_stamp_now());
+        let name = format!("scene-{}.json", crate::file_names::utc_stamp_now());
         crate::web::download(
             &name,
             "application/json",

@@ -317,7 +317,7 @@ fn encode(
 /// name), else `dfsph2d-YYYYMMDD-HHMMSS.EXT` in `dir` (`-2`, `-3`, … when taken). A hard link
 /// fails rather than replace a file that appeared meanwhile.
 fn place(file: &Path, dir: &Path, ext: &str, first: Option<PathBuf>) -> Result<PathBuf> {
-    let mut candidate = first.unwrap_or_else(|| crate::export::timestamped_file(dir, ext));
+    let mut candidate = first.unwrap_or_else(|| crate::file_names::timestamped_file(dir, ext));
     for _ in 0..1000 {
         match std::fs::hard_link(file, &candidate) {
             Ok(()) => {
@@ -325,7 +325,7 @@ fn place(file: &Path, dir: &Path, ext: &str, first: Option<PathBuf>) -> Result<P
                 return Ok(candidate);
             }
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                candidate = crate::export::timestamped_file(dir, ext);
+                candidate = crate::file_names::timestamped_file(dir, ext);
             }
             Err(e) => {
                 // No hard links here (some network or FAT file systems): a rename, after
@@ -443,7 +443,7 @@ fn download(recording: PageRecording, time: f64) -> String {
         let FrameEncoder { gif, .. } = encoder;
         gif.finish_in_memory().map(|bytes| (bytes, frames))
     });
-    let name = format!("dfsph2d-{}.gif", crate::export::utc_stamp_now());
+    let name = format!("dfsph2d-{}.gif", crate::file_names::utc_stamp_now());
     match gif {
         Ok((bytes, frames)) => match crate::web::download(&name, "image/gif", &bytes) {
             Ok(()) => format!("downloaded {name} ({frames} frames)"),
@@ -517,7 +517,7 @@ mod tests {
         let mut sim = sim();
         let mut rec = VideoRecorder::default();
         // Someone's file of the name the recording would take is kept.
-        let taken = crate::export::timestamped_file(dir.path(), "gif");
+        let taken = crate::file_names::timestamped_file(dir.path(), "gif");
         std::fs::write(&taken, "mine").unwrap();
         rec.toggle(&sim, dir.path(), FrameField::Speed, WaterLook::Surface);
         assert!(rec.is_recording());
