@@ -3,16 +3,17 @@
 //!
 //! `a_i += 8ν Σ_j V_j (v_ij·x_ij)/(|x_ij|² + 0.01h²) ∇W_ij`,
 //!
-//! and the same against boundary particles with their velocity and `ν_b` (wall friction).
+//! and the same against boundary particles with their velocity and `ν_b` (wall friction,
+//! [`super::WallFriction`]).
 //! Explicit, so stable only for `Δt ≤ 0.125·d²/ν` (`SolverSettings::viscous_stability`).
 
 use glam::Vec2;
 
 use super::model::ViscosityModel;
+use crate::forces::model::{AccelerationModel, Particle};
 use crate::kernel::Kernel;
 use crate::scene::ViscosityParams;
 use crate::settings::SolverSettings;
-use crate::step::StepContext;
 
 /// The Laplacian viscosity: ν between fluid particles and ν_b between fluid and walls.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -35,27 +36,6 @@ impl Laplacian {
     pub fn regularisation(kernel: &Kernel) -> f32 {
         0.01 * kernel.support() * kernel.support()
     }
-
-    /// `8ν_b`, m²/s, times [`Self::wall_sum`]; 0 when the walls have no friction.
-    pub fn wall_scale(&self) -> f32 {
-        8.0 * self.boundary_kinematic
-    }
-
-    /// `Σ_b Ψ_b (v_ib·x_ib)/(|x_ib|² + eps2) ∇W_ib` of fluid particle `i` at `xi` moving at
-    /// `vi`, over its wall neighbours (with their cached `∇W_ib`), 1/s.
-    #[inline]
-    pub fn wall_sum(step: &StepContext, i: usize, xi: Vec2, vi: Vec2, eps2: f32) -> Vec2 {
-        let (nb, boundary) = (&step.nb, step.boundary);
-        let r = nb.boundary.range(i);
-        let mut laplace = Vec2::ZERO;
-        for (&b, &g) in nb.boundary.of(i).iter().zip(&nb.boundary_grad[r]) {
-            let b = b as usize;
-            let xib = xi - boundary.position[b];
-            let vib = vi - boundary.velocity[b];
-            laplace += boundary.volume[b] * g * (vib.dot(xib) / (xib.length_squared() + eps2));
-        }
-        laplace
-    }
 }
 
 impl ViscosityModel for Laplacian {
@@ -73,5 +53,12 @@ impl ViscosityModel for Laplacian {
         } else {
             f32::INFINITY
         }
+    }
+}
+
+impl AccelerationModel for Laplacian {
+    /// `V·8ν·Σ_j ∇W_ij (v_ij·x_ij)/(|x_ij|² + 0.01h²)`, from the step's fluid pair sums.
+    fn add_to(&self, p: &Particle, acc: &mut Vec2) {
+        *acc += p.step.volume * (self.pair_scale(p.step.dt) * p.laplace);
     }
 }

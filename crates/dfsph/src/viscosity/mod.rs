@@ -1,22 +1,25 @@
-//! Viscosity models, one per file: [`Xsph`] velocity smoothing and the [`Laplacian`] viscosity
-//! with a kinematic ν. A scene combines them (each is off at zero, `viscosity` in the scene);
-//! `forces::non_pressure_accelerations` adds their accelerations.
+//! Viscosity models, one per file: [`Xsph`] velocity smoothing, the [`Laplacian`] viscosity
+//! with a kinematic ν, and [`WallFriction`] with the walls' ν_b. A scene combines them (each
+//! is off at zero, `viscosity` in the scene). Each is a force model
+//! (`forces::model::AccelerationModel`) in the list of `forces::non_pressure_accelerations`;
+//! [`Viscosity::max_time_step`] combines their Δt bounds.
 //!
-//! Their fluid pair sums run together, in one pass over the blocks
+//! The fluid pair sums of XSPH and the Laplacian run together, in one pass over the blocks
 //! (`blocked::BlockedPairs::viscosity_sums`, whose per-pair formulas are in the lane kernels
 //! `blocked/lanes.rs` and `blocked/avx512.rs`): the pass reads each pair's `W` and `∇W` once
-//! for both. So a model is a field of [`Viscosity`] rather than an entry of a list, and a new
-//! one is its file, its field here and its pair formula in the lane kernels.
+//! for both, and each model reads its own sum.
 
 use crate::scene::ViscosityParams;
 use crate::settings::SolverSettings;
 
 mod laplacian;
 mod model;
+mod wall_friction;
 mod xsph;
 
 pub(crate) use laplacian::Laplacian;
 pub(crate) use model::ViscosityModel;
+pub(crate) use wall_friction::WallFriction;
 pub(crate) use xsph::Xsph;
 
 /// The viscosity models of a scene, in solver units.

@@ -4,7 +4,10 @@
 //! neighbours' kernel average each step, which damps particle-scale noise; fluid–fluid pairs
 //! only.
 
+use glam::Vec2;
+
 use super::model::ViscosityModel;
+use crate::forces::model::{AccelerationModel, Particle};
 use crate::scene::ViscosityParams;
 
 /// XSPH smoothing with coefficient c.
@@ -26,5 +29,12 @@ impl ViscosityModel for Xsph {
     /// `c/Δt`, 1/s, times `V Σ_j (v_j − v_i) W_ij`.
     fn pair_scale(&self, dt: f32) -> f32 {
         self.coefficient / dt
+    }
+}
+
+impl AccelerationModel for Xsph {
+    /// `V·(c/Δt)·Σ_j (v_j − v_i) W_ij`, from the step's fluid pair sums.
+    fn add_to(&self, p: &Particle, acc: &mut Vec2) {
+        *acc += p.step.volume * (self.pair_scale(p.step.dt) * p.smooth);
     }
 }
