@@ -118,32 +118,6 @@ pub fn tank_face_normal(scene: &Scene, at: Point) -> Option<Vec2> {
     }
 }
 
-/// Pressure over ρ0, m²/s², with which each fluid particle pushes its neighbours and the
-/// walls in the current step, exactly as the solver applies it (`apply_pressure`): the density
-/// solve's p/ρ0 plus, for DFSPH, the divergence solve's κᵛ/Δt (its impulse spread over the
-/// step; it carries much of an impact). WCSPH applies p/ρ0 divided by (ρ/ρ0)²; the
-/// conjugate-gradient solve applies its stored pressure over the lattice's gradient
-/// consistency ([`Simulation::pressure_force_scale`]).
-fn pressure_pushes(sim: &Simulation) -> impl Fn(usize) -> f32 + '_ {
-    let force_scale = sim.pressure_force_scale();
-    let solver = &sim.scene().solver;
-    let dt = sim.stats().dt as f32;
-    let use_divergence =
-        solver.method == crate::scene::Method::Dfsph && solver.divergence_solve && dt > 0.0;
-    let wcsph = solver.method == crate::scene::Method::Wcsph;
-    move |i: usize| -> f32 {
-        let p = sim.pressures_over_rho0()[i] * force_scale;
-        let s = sim.density_ratios()[i].max(1.0e-3);
-        let p = if wcsph { p / (s * s) } else { p };
-        let kv = if use_divergence {
-            sim.divergence_stiffnesses()[i] / dt
-        } else {
-            0.0
-        };
-        p + kv
-    }
-}
-
 /// Normal pressure on the tank wall at the world point `x` of a face with outward (into the
 /// wall) normal `normal`, Pa: the fluid's force on the wall's boundary particles per unit
 /// length (see the module documentation). 0 when no fluid touches the wall there.
@@ -177,7 +151,7 @@ pub fn wall_pressure_at(sim: &Simulation, x: Vec2, normal: Vec2) -> f64 {
         .hydrostatic_ghost_gradient(sim.gravity())
         .unwrap_or(Vec2::ZERO);
     let mass = sim.particle_mass() as f64;
-    let push = pressure_pushes(sim);
+    let push = sim.applied_pressures_over_rho0();
     // The wall's particles under the sensor: tank body, behind the face, within a of the
     // sensor along it.
     let walls: Vec<(Vec2, f32, f32)> = sim
@@ -201,7 +175,7 @@ pub fn wall_pressure_at(sim: &Simulation, x: Vec2, normal: Vec2) -> f64 {
         if (xi - x).length_squared() >= reach * reach {
             continue;
         }
-        let push_i = wall_weight * push(i);
+        let push_i = wall_weight * push[i];
         if push_i == 0.0 && gravity == Vec2::ZERO {
             continue;
         }
@@ -231,7 +205,7 @@ pub fn pressure_at(sim: &Simulation, x: Vec2) -> Option<f64> {
     let rho0 = sim.rest_density() as f64;
     let mass = sim.particle_mass();
     let v0 = mass / sim.rest_density();
-    let push = pressure_pushes(sim);
+    let push = sim.applied_pressures_over_rho0();
     // A bond reaches the window when one of its ends is within h (window) + h (bond length).
     let reach2 = 4.0 * h2;
     let fluid: Vec<(Vec2, f32)> = sim
@@ -239,7 +213,7 @@ pub fn pressure_at(sim: &Simulation, x: Vec2) -> Option<f64> {
         .iter()
         .enumerate()
         .filter(|(_, &xi)| (xi - x).length_squared() < reach2)
-        .map(|(i, &xi)| (xi, push(i)))
+        .map(|(i, &xi)| (xi, push[i]))
         .collect();
     // Fluid fraction of the window and the centroid of its fluid.
     let (mut phi, mut centroid) = (0.0f64, glam::DVec2::ZERO);

@@ -53,6 +53,27 @@ pub(crate) trait PressureSolver: Send + Sync {
         1.0
     }
 
+    /// p/ρ0 (m²/s²) with which each fluid particle pushed its neighbours and the walls in the
+    /// step just taken, of `dt`, exactly as this solver applies it: the stored pressure times
+    /// [`Self::pressure_force_scale`], plus, where the divergence solve ran, its stiffness
+    /// κᵛ/Δt (its impulse spread over the step; it carries much of an impact). The probes read
+    /// the walls' forces off it.
+    fn applied_pressures(
+        &self,
+        fluid: &FluidParticles,
+        dt: f32,
+        divergence_solve: bool,
+    ) -> Vec<f32> {
+        let scale = self.pressure_force_scale();
+        let divergence = (divergence_solve && dt > 0.0).then_some(&fluid.divergence_stiffness);
+        (0..fluid.len())
+            .map(|i| {
+                let p = fluid.pressure_over_rho0[i] * scale;
+                p + divergence.map_or(0.0, |kv| kv[i] / dt)
+            })
+            .collect()
+    }
+
     /// The pressure over ρ0 (m²/s²) the first step starts from, for particles at `position`
     /// under `gravity` at spacing `d`; `None` for zero.
     fn initial_pressure(&self, position: &[Vec2], gravity: Vec2, d: f32) -> Option<Vec<f32>> {

@@ -58,6 +58,18 @@ impl PressureSolver for Wcsph {
     fn sound_speed(&self) -> Option<f32> {
         Some(self.sound_speed)
     }
+
+    /// `p/ρ0` over `(ρ/ρ0)²`, the symmetric form's own weight (below); there is no divergence
+    /// solve.
+    fn applied_pressures(&self, fluid: &FluidParticles, _: f32, _: bool) -> Vec<f32> {
+        let scale = self.pressure_force_scale();
+        (0..fluid.len())
+            .map(|i| {
+                let s = fluid.density_ratio[i].max(1.0e-3);
+                fluid.pressure_over_rho0[i] * scale / (s * s)
+            })
+            .collect()
+    }
 }
 
 /// WCSPH: pressure from the Tait equation `p = B·((ρ/ρ0)^γ − 1)` (clamped at 0 so the free
