@@ -11,8 +11,11 @@
 //! A pass's parts are handed out without rayon's stealing: each worker starts on its own
 //! share, the same in every pass (so what it wrote stays in its core's cache), and a worker
 //! that runs out takes the parts the others have not reached yet ([`Team::parts`]). The
-//! workers share arrays that some of them write: [`Shared`] hands out the parts, and its
-//! `unsafe` methods state what the barrier must order.
+//! workers share arrays that some of them write: within a [`Pass`] (from one barrier to the
+//! next) a [`Shared`] array is either read whole by any worker or written part by part, each
+//! part by the worker that took it ([`Part`]). Its methods check both at run time (a
+//! conflict panics, and the panic reaches the caller), and the borrows they hand out end
+//! with the pass, so the solves that use it need no `unsafe`.
 
 use std::marker::PhantomData;
 use std::ops::Range;
@@ -33,11 +36,14 @@ const SPINS_BEFORE_YIELD: u32 = 1 << 11;
 pub struct Team<'a> {
     index: usize,
     region: &'a Region,
+    /// Barriers this worker has passed: the same count in every worker between two
+    /// barriers, so it names the pass at hand ([`Shared`]'s checks).
+    passes: usize,
 }
 
-impl Team<'_> {
-    /// This worker's number, `0..count()`: the solver's passes need only their shares, and
-    /// a value every worker must agree on is read by worker 0 alone.
+impl<'a> Team<'a> {
+    /// This worker's number, `0..count()` (in a pass: [`Pass::index`]).
+    #[cfg(all(test, feature = "parallel"))]
     pub fn index(&self) -> usize {
         self.index
     }
@@ -49,8 +55,15 @@ impl Team<'_> {
 
     /// Wait until every worker of the region has reached this call: what any worker wrote
     /// before it is visible to every worker after it.
-    pub fn wait(&self) {
+    pub fn wait(&mut self) {
         self.region.wait();
+        self.passes += 1;
+    }
+
+    /// The pass at hand, until [`Pass::end`]: what [`Shared`] arrays are read and written
+    /// through.
+    pub fn pass(&mut self) -> Pass<'_, 'a> {
+        Pass { team: self }
     }
 
     /// This worker's share of `0..items`, cut where `cost_before(k)` (non-decreasing, the
@@ -98,6 +111,50 @@ impl Team<'_> {
             team: self,
             victim: self.index,
         }
+    }
+}
+
+/// One worker's part of a pass: from [`Team::pass`] to [`Pass::end`], the barrier. The
+/// slices that [`Shared`] hands out borrow it, so none outlives the pass.
+pub struct Pass<'p, 'a> {
+    team: &'p mut Team<'a>,
+}
+
+impl Pass<'_, '_> {
+    /// This worker's number, `0..` the members: the solver's passes need only their
+    /// shares, and a value every worker must agree on is read by worker 0 alone.
+    pub fn index(&self) -> usize {
+        self.team.index
+    }
+
+    /// The parts this worker runs in this pass ([`Team::parts`]), each as a [`Part`] that
+    /// writes its elements of [`Shared`] arrays.
+    pub fn parts(&self, share: Range<usize>) -> impl Iterator<Item = Part<'_>> + '_ {
+        let pass = self.team.passes;
+        self.team.parts(share).map(move |index| Part {
+            index,
+            pass,
+            _pass: PhantomData,
+        })
+    }
+
+    /// End the pass: wait at the barrier for every worker.
+    pub fn end(self) {
+        self.team.wait();
+    }
+}
+
+/// One part of a pass, taken by this worker alone ([`Pass::parts`]).
+pub struct Part<'p> {
+    index: usize,
+    pass: usize,
+    _pass: PhantomData<&'p ()>,
+}
+
+impl Part<'_> {
+    /// Its number, `0..` the parts of the pass.
+    pub fn index(&self) -> usize {
+        self.index
     }
 }
 
@@ -171,7 +228,7 @@ const JOIN_WINDOW: Duration = Duration::from_micros(200);
 ///
 /// If one member panics, the others panic at their next [`Team::wait`] rather than wait
 /// for it forever, and the first panic reaches the caller once every member has stopped.
-pub fn run<R: Send>(body: impl Fn(&Team) -> R + Sync) -> Vec<R> {
+pub fn run<R: Send>(body: impl Fn(&mut Team) -> R + Sync) -> Vec<R> {
     run_joined_within(JOIN_WINDOW, &INVITATIONS, body)
 }
 
@@ -180,7 +237,7 @@ pub fn run<R: Send>(body: impl Fn(&Team) -> R + Sync) -> Vec<R> {
 fn run_joined_within<R: Send>(
     window: Duration,
     invitations: &'static Invitations,
-    body: impl Fn(&Team) -> R + Sync,
+    body: impl Fn(&mut Team) -> R + Sync,
 ) -> Vec<R> {
     let workers = crate::par::current_num_threads();
     let outside = crate::par::current_thread_index().is_none();
@@ -189,9 +246,10 @@ fn run_joined_within<R: Send>(
     if workers == 1 {
         let region = Region::new(1);
         region.door.store(CLOSED, Ordering::Release);
-        return vec![body(&Team {
+        return vec![body(&mut Team {
             index: 0,
             region: &region,
+            passes: 0,
         })];
     }
     // Started from outside the pool, the region is pool work in progress just as a step
@@ -200,11 +258,12 @@ fn run_joined_within<R: Send>(
     let region = Arc::new(Region::new(most));
     let results: Vec<Mutex<Option<R>>> = (0..most).map(|_| Mutex::new(None)).collect();
     let member = |index: usize| {
-        let team = Team {
+        let mut team = Team {
             index,
             region: &region,
+            passes: 0,
         };
-        let result = body(&team);
+        let result = body(&mut team);
         *results[index].lock().unwrap_or_else(|e| e.into_inner()) = Some(result);
     };
     let member: &(dyn Fn(usize) + Sync) = &member;
@@ -430,51 +489,104 @@ impl Drop for PoisonOnUnwind<'_> {
     }
 }
 
-/// A slice the workers of a region share. Between two barriers, either every worker only
-/// reads it, or each worker writes (and reads) only its own part.
+/// A slice the workers of a region share, in parts of `part_len` elements (part k: elements
+/// `k·part_len ..`). Within a pass, either any worker reads the whole of it, or each worker
+/// writes the parts it took; both are checked as they are asked for. It serves one region.
 pub struct Shared<'a, T> {
     ptr: *mut T,
     len: usize,
+    part_len: usize,
+    /// How the slice is used in the latest pass that used it: `2·pass` read, `2·pass + 1`
+    /// written by parts; [`UNUSED`] before the first.
+    use_in: AtomicU64,
+    /// Per part, one more than the pass that last took it (0: never).
+    taken_in: Box<[AtomicUsize]>,
     _borrow: PhantomData<&'a mut [T]>,
 }
 
-// SAFETY: access goes through the `unsafe` methods below, whose callers guarantee that no
-// element is written by one worker while another touches it.
+/// [`Shared::use_in`] before the slice is first used.
+const UNUSED: u64 = u64::MAX;
+
+// SAFETY: every access goes through `read` and `part_mut`, which check at run time that no
+// element is written by one worker while another reads or writes it within a pass, and whose
+// borrows end with the pass (the barrier orders the passes).
 unsafe impl<T: Send + Sync> Sync for Shared<'_, T> {}
 
 impl<'a, T> Shared<'a, T> {
-    /// Share `values` for the region (borrowed until the `Shared` is dropped).
-    pub fn new(values: &'a mut [T]) -> Self {
+    /// Share `values` for the region, in parts of `part_len` elements (borrowed until the
+    /// `Shared` is dropped).
+    pub fn new(values: &'a mut [T], part_len: usize) -> Self {
+        assert!(part_len > 0, "parts of no element");
         Self {
             ptr: values.as_mut_ptr(),
             len: values.len(),
+            part_len,
+            use_in: AtomicU64::new(UNUSED),
+            taken_in: (0..values.len().div_ceil(part_len))
+                .map(|_| AtomicUsize::new(0))
+                .collect(),
             _borrow: PhantomData,
         }
     }
 
-    /// Elements `range`, to write.
-    ///
-    /// # Safety
-    /// Until this worker's next [`Team::wait`], no other worker reads or writes any element
-    /// of `range`, and this worker holds no other reference into it.
-    #[allow(clippy::mut_from_ref)]
-    pub unsafe fn part_mut(&self, range: Range<usize>) -> &mut [T] {
-        assert!(
-            range.start <= range.end && range.end <= self.len,
-            "part {range:?} of a shared slice of {}",
-            self.len
-        );
-        // SAFETY: in bounds (asserted); exclusive by the caller's guarantee.
-        unsafe { std::slice::from_raw_parts_mut(self.ptr.add(range.start), range.len()) }
+    /// Every element, to read for the rest of `pass`. Panics if a worker writes a part of
+    /// this slice in the same pass.
+    pub fn read<'p>(&'p self, pass: &'p Pass) -> &'p [T] {
+        self.use_in_pass(pass.team.passes, false);
+        // SAFETY: the whole borrowed slice; no worker writes it in this pass (checked), and
+        // the borrow ends with the pass.
+        unsafe { std::slice::from_raw_parts(self.ptr, self.len) }
     }
 
-    /// Every element, to read.
-    ///
-    /// # Safety
-    /// Until this worker's next [`Team::wait`], no worker writes any element.
-    pub unsafe fn read(&self) -> &[T] {
-        // SAFETY: the whole borrowed slice; unchanged by the caller's guarantee.
-        unsafe { std::slice::from_raw_parts(self.ptr, self.len) }
+    /// The elements of `part`, to write for the rest of its pass. Panics if a worker reads
+    /// this slice in the same pass, or if the part of this slice was taken before in it.
+    #[allow(clippy::mut_from_ref)]
+    pub fn part_mut<'p>(&'p self, part: &'p Part) -> &'p mut [T] {
+        self.use_in_pass(part.pass, true);
+        let start = part.index * self.part_len;
+        assert!(
+            start < self.len,
+            "part {} of a shared slice of {} in parts of {}",
+            part.index,
+            self.len,
+            self.part_len
+        );
+        let before = self.taken_in[part.index].swap(part.pass + 1, Ordering::AcqRel);
+        assert!(
+            before != part.pass + 1,
+            "part {} of a shared slice taken twice in one pass",
+            part.index
+        );
+        let end = (start + self.part_len).min(self.len);
+        // SAFETY: in bounds (asserted); no other worker reads the slice in this pass, and
+        // this part is taken once in it (both checked); the borrow ends with the pass.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr.add(start), end - start) }
+    }
+
+    /// Record that the slice is read (`write` false) or written by parts in pass `pass`;
+    /// panic if it is already used the other way in it. The barrier keeps every worker in
+    /// the same pass, so a use from an earlier pass is simply replaced.
+    fn use_in_pass(&self, pass: usize, write: bool) {
+        let wanted = 2 * pass as u64 + u64::from(write);
+        let mut now = self.use_in.load(Ordering::Acquire);
+        loop {
+            if now == wanted {
+                return;
+            }
+            assert!(
+                now == UNUSED || now / 2 != pass as u64,
+                "a shared slice read and written in one pass"
+            );
+            match self.use_in.compare_exchange_weak(
+                now,
+                wanted,
+                Ordering::AcqRel,
+                Ordering::Acquire,
+            ) {
+                Ok(_) => return,
+                Err(seen) => now = seen,
+            }
+        }
     }
 }
 
@@ -486,29 +598,32 @@ mod tests {
 
     /// [`run`] with every worker of the pool a member: a window long enough for any idle
     /// worker of a test machine to join.
-    fn run_all<R: Send>(body: impl Fn(&Team) -> R + Sync) -> Vec<R> {
+    fn run_all<R: Send>(body: impl Fn(&mut Team) -> R + Sync) -> Vec<R> {
         run_joined_within(Duration::from_secs(10), &INVITATIONS, body)
     }
 
     /// Every worker reads the whole array each round, after all wrote their parts: a
-    /// missing barrier, or shares that overlap or leave gaps, give another sum.
+    /// missing barrier, or parts that overlap or leave gaps, give another sum.
     #[test]
     fn workers_see_each_others_writes_after_the_barrier() {
         for threads in [1, 2, 3, 4] {
             let n = 1000;
             let mut values = vec![1u64; n];
-            let shared = Shared::new(&mut values);
+            let shared = Shared::new(&mut values, 7);
+            let parts = n.div_ceil(7);
             let sums = pool(threads).install(|| {
                 run_all(|team| {
-                    let mine = team.share(n, |k| k as u64);
+                    let mine = team.share(parts, |k| k as u64);
                     let mut seen = Vec::new();
                     for _ in 0..50 {
-                        // SAFETY: shares are disjoint; reads happen between barriers.
-                        let part = unsafe { shared.part_mut(mine.clone()) };
-                        part.iter_mut().for_each(|v| *v *= 2);
-                        team.wait();
-                        seen.push(unsafe { shared.read() }.iter().sum::<u64>());
-                        team.wait();
+                        let pass = team.pass();
+                        for part in pass.parts(mine.clone()) {
+                            shared.part_mut(&part).iter_mut().for_each(|v| *v *= 2);
+                        }
+                        pass.end();
+                        let pass = team.pass();
+                        seen.push(shared.read(&pass).iter().sum::<u64>());
+                        pass.end();
                     }
                     (team.count(), seen)
                 })
@@ -521,6 +636,70 @@ mod tests {
             }
             assert!(values.iter().all(|&v| v == 1 << 50));
         }
+    }
+
+    /// The text of a caught panic.
+    fn message(payload: Box<dyn std::any::Any + Send>) -> String {
+        payload
+            .downcast_ref::<String>()
+            .cloned()
+            .or_else(|| payload.downcast_ref::<&str>().map(|s| s.to_string()))
+            .unwrap_or_default()
+    }
+
+    /// Reading a slice whole and writing a part of it in one pass, or taking a part twice,
+    /// panics (in the caller), whichever worker comes first; the same uses in separate
+    /// passes do not.
+    #[test]
+    fn a_slice_read_and_written_in_one_pass_or_a_part_taken_twice_panics() {
+        let mut values = vec![0u32; 64];
+        let shared = Shared::new(&mut values, 16);
+        let read_then_write = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            run(|team| {
+                let mine = team.share(4, |k| k as u64);
+                let pass = team.pass();
+                let whole = shared.read(&pass).len();
+                for part in pass.parts(mine.clone()) {
+                    shared.part_mut(&part)[0] = 1;
+                }
+                whole
+            })
+        }));
+        assert!(message(read_then_write.unwrap_err()).contains("read and written in one pass"));
+        let mut values = vec![0u32; 64];
+        let shared = Shared::new(&mut values, 16);
+        let twice = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            run(|team| {
+                let mine = team.share(4, |k| k as u64);
+                let pass = team.pass();
+                for part in pass.parts(mine.clone()) {
+                    shared.part_mut(&part)[0] = 1;
+                    shared.part_mut(&part)[1] = 1;
+                }
+            })
+        }));
+        assert!(message(twice.unwrap_err()).contains("taken twice in one pass"));
+        let mut values = vec![0u32; 64];
+        let shared = Shared::new(&mut values, 16);
+        let sums = run(|team| {
+            let mine = team.share(4, |k| k as u64);
+            let pass = team.pass();
+            for part in pass.parts(mine.clone()) {
+                shared.part_mut(&part).fill(2);
+            }
+            pass.end();
+            let pass = team.pass();
+            let sum: u32 = shared.read(&pass).iter().sum();
+            pass.end();
+            let pass = team.pass();
+            for part in pass.parts(mine.clone()) {
+                shared.part_mut(&part).fill(3);
+            }
+            pass.end();
+            sum
+        });
+        assert!(sums.iter().all(|&sum| sum == 128), "{sums:?}");
+        assert!(values.iter().all(|&v| v == 3));
     }
 
     /// Over many passes, every part is taken exactly once per pass; a worker held up (here
@@ -565,6 +744,7 @@ mod tests {
                 Team {
                     index,
                     region: &region,
+                    passes: 0,
                 }
                 .share(20, cost)
             })
@@ -574,6 +754,7 @@ mod tests {
         let empty = Team {
             index: 1,
             region: &region,
+            passes: 0,
         }
         .share(0, |_| 0);
         assert_eq!(empty, 0..0);

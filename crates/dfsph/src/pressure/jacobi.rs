@@ -275,6 +275,8 @@ impl<'a> Sweeps<'a> {
         let blocks = n.div_ceil(LANES);
         let blocks_per_part = reduce::part_units(blocks, 16);
         let parts = blocks.div_ceil(blocks_per_part);
+        // A part's particles in the per-particle arrays; one sum per part in `part_sums`.
+        let part_len = blocks_per_part * LANES;
         Self {
             step,
             terms: ResidualTerms {
@@ -291,22 +293,22 @@ impl<'a> Sweeps<'a> {
             blocks,
             blocks_per_part,
             parts,
-            velocity: Shared::new(&mut fluid.velocity),
-            total: Shared::new(total),
+            velocity: Shared::new(&mut fluid.velocity, part_len),
+            total: Shared::new(total, part_len),
             increments: [
-                Shared::new(&mut scratch.delta),
-                Shared::new(&mut scratch.previous_delta),
+                Shared::new(&mut scratch.delta, part_len),
+                Shared::new(&mut scratch.previous_delta, part_len),
             ],
             rates: [
-                Shared::new(&mut scratch.rate),
-                Shared::new(&mut scratch.previous_rate),
+                Shared::new(&mut scratch.rate, part_len),
+                Shared::new(&mut scratch.previous_rate, part_len),
             ],
             warm: &scratch.warm,
             stop_seen: AtomicBool::new(false),
             bodies: step.bodies,
             base_flux: step.nb.wall_flux,
-            flux: Shared::new(&mut scratch.flux),
-            part_sums: Shared::new(&mut part_sums[..parts]),
+            flux: Shared::new(&mut scratch.flux, part_len),
+            part_sums: Shared::new(&mut part_sums[..parts], 1),
         }
     }
 
@@ -334,27 +336,23 @@ impl<'a> Sweeps<'a> {
     /// The residuals at the velocities as they are into `rates[buffer]` and the next
     /// increments into `increments[buffer]`; returns the average and largest error, percent,
     /// and whether a stop was requested (the same three values to every member).
-    fn residuals(&self, team: &Team, mine: &Range<usize>, buffer: usize) -> (f64, f64, bool) {
-        // SAFETY: in this pass the velocities and the wall flux are only read; each part's
-        // items and sum are written by the one member that took the part; the barrier below
-        // ends the pass.
-        let vel = unsafe { self.velocity.read() };
+    fn residuals(&self, team: &mut Team, mine: &Range<usize>, buffer: usize) -> (f64, f64, bool) {
+        // In this pass the velocities and the wall flux are only read; each part's items and
+        // sum are written by the one member that took the part.
+        let pass = team.pass();
+        let vel = self.velocity.read(&pass);
         let terms = ResidualTerms {
             wall_flux: match self.bodies {
-                Some(_) => unsafe { self.flux.read() },
+                Some(_) => self.flux.read(&pass),
                 None => self.base_flux,
             },
             ..self.terms
         };
-        for p in team.parts(mine.clone()) {
-            let (part_blocks, items) = self.part(p);
-            let (d, r, sum) = unsafe {
-                (
-                    self.increments[buffer].part_mut(items.clone()),
-                    self.rates[buffer].part_mut(items),
-                    &mut self.part_sums.part_mut(p..p + 1)[0],
-                )
-            };
+        for part in pass.parts(mine.clone()) {
+            let (part_blocks, _) = self.part(part.index());
+            let d = self.increments[buffer].part_mut(&part);
+            let r = self.rates[buffer].part_mut(&part);
+            let sum = &mut self.part_sums.part_mut(&part)[0];
             // The residuals of a few blocks at a time, summed together.
             const GROUP: usize = reduce::BLOCKS_TOGETHER;
             let mut errors = [[0.0f32; LANES]; GROUP];
@@ -374,15 +372,18 @@ impl<'a> Sweeps<'a> {
         }
         // Read and written around the barrier like the part sums: the next write comes in
         // the next residual pass, after the barrier that ends the pass between.
-        if team.index() == 0 {
+        if pass.index() == 0 {
             self.stop_seen
                 .store(self.step.stop_requested(), Ordering::Relaxed);
         }
-        team.wait();
+        pass.end();
         let stop = self.stop_seen.load(Ordering::Relaxed);
-        // SAFETY: the part sums are written only in the residual pass, which every member
-        // has finished; the next one starts after another barrier.
-        let (sum, max) = unsafe { self.part_sums.read() }
+        // The part sums are read by every member in the next pass; the next residual pass,
+        // which writes them, starts after another barrier.
+        let pass = team.pass();
+        let (sum, max) = self
+            .part_sums
+            .read(&pass)
             .iter()
             .copied()
             .fold((0.0, 0.0), reduce::add_sum_max);
@@ -397,45 +398,37 @@ impl<'a> Sweeps<'a> {
     /// stopping stiffness, applied again, would throw it back (a lone particle met the
     /// ceiling at 10 m/s and left it at 3.8–9.5 m/s with the density solve's warm start
     /// applied to all). SPlisHSPlasH's DFSPH gates its warm start the same way.
-    fn warm_start(&self, team: &Team, mine: &Range<usize>, buffer: usize, gated: bool) {
+    fn warm_start(&self, team: &mut Team, mine: &Range<usize>, buffer: usize, gated: bool) {
         let (source, rate_scale) = (self.terms.source, self.terms.rate_scale);
-        for p in team.parts(mine.clone()) {
-            let (_, items) = self.part(p);
-            // SAFETY: each part's increments are written by the one member that took it, and
-            // its rates were written in the residual pass, which the barrier ended; the
-            // barrier below ends this pass.
-            let (d, r) = unsafe {
-                (
-                    self.increments[buffer].part_mut(items.clone()),
-                    self.rates[buffer].part_mut(items.clone()),
-                )
-            };
+        // Each part's increments are written by the one member that took it, and its rates
+        // (written in the residual pass, which the barrier ended) read by it.
+        let pass = team.pass();
+        for part in pass.parts(mine.clone()) {
+            let (_, items) = self.part(part.index());
+            let d = self.increments[buffer].part_mut(&part);
+            let r = self.rates[buffer].part_mut(&part);
             for (k, i) in items.enumerate() {
                 let compressed = !gated || source[i] + rate_scale * r[k] > 0.0;
                 d[k] = if compressed { self.warm[i] } else { 0.0 };
             }
         }
-        team.wait();
+        pass.end();
     }
 
     /// Apply the increments in `increments[buffer]` to the velocities and add them to the
     /// running totals, part by part; then, with rigid bodies, move them by what the
     /// increments gave them (`moved`, this member's running sum) and bring the walls' share
     /// of the density rate up to date, part by part.
-    fn apply(&self, team: &Team, mine: &Range<usize>, buffer: usize, moved: &mut Moved) {
-        // SAFETY: in this pass the increments are only read; each part's velocities and
-        // totals are written by the one member that took the part; the barrier below ends
-        // the pass.
-        let kappa = unsafe { self.increments[buffer].read() };
+    fn apply(&self, team: &mut Team, mine: &Range<usize>, buffer: usize, moved: &mut Moved) {
+        // In this pass the increments are only read; each part's velocities and totals are
+        // written by the one member that took the part.
+        let pass = team.pass();
+        let kappa = self.increments[buffer].read(&pass);
         let nb = &self.step.nb;
-        for p in team.parts(mine.clone()) {
-            let (part_blocks, items) = self.part(p);
-            let (vel, sum) = unsafe {
-                (
-                    self.velocity.part_mut(items.clone()),
-                    self.total.part_mut(items),
-                )
-            };
+        for part in pass.parts(mine.clone()) {
+            let (part_blocks, _) = self.part(part.index());
+            let vel = self.velocity.part_mut(&part);
+            let sum = self.total.part_mut(&part);
             nb.blocks.apply_blocks(
                 part_blocks,
                 self.step.volume,
@@ -445,36 +438,38 @@ impl<'a> Sweeps<'a> {
                 Some(sum),
             );
         }
-        team.wait();
+        pass.end();
         if let Some(bodies) = self.bodies {
-            // SAFETY: the increments are read until the barrier below, as above.
+            // The increments are still only read; each part's flux is written by the one
+            // member that took it, before the residual pass that reads it.
+            let pass = team.pass();
+            let kappa = self.increments[buffer].read(&pass);
             for (total, dv) in moved.0.iter_mut().zip(bodies.velocity_change(kappa)) {
                 *total += dv;
             }
-            for p in team.parts(mine.clone()) {
-                let (_, items) = self.part(p);
-                // SAFETY: each part's flux is written by the one member that took it; the
-                // barrier below orders this before the residual pass that reads it.
-                let flux = unsafe { self.flux.part_mut(items.clone()) };
+            for part in pass.parts(mine.clone()) {
+                let (_, items) = self.part(part.index());
+                let flux = self.flux.part_mut(&part);
                 flux.copy_from_slice(&self.base_flux[items.clone()]);
                 bodies.add_flux(flux, items, &moved.0, 1.0);
             }
-            team.wait();
+            pass.end();
         }
     }
 
     /// Take back the increments of `increments[buffer]`, applied last: negate them, part by
     /// part, and apply them.
-    fn take_back(&self, team: &Team, mine: &Range<usize>, buffer: usize, moved: &mut Moved) {
-        for p in team.parts(mine.clone()) {
-            let (_, items) = self.part(p);
-            // SAFETY: each part is negated by the member that took it; the barrier orders
-            // this before the pass that reads the increments.
-            unsafe { self.increments[buffer].part_mut(items) }
+    fn take_back(&self, team: &mut Team, mine: &Range<usize>, buffer: usize, moved: &mut Moved) {
+        // Each part is negated by the member that took it, before the pass that reads the
+        // increments.
+        let pass = team.pass();
+        for part in pass.parts(mine.clone()) {
+            self.increments[buffer]
+                .part_mut(&part)
                 .iter_mut()
                 .for_each(|d| *d = -*d);
         }
-        team.wait();
+        pass.end();
         self.apply(team, mine, buffer, moved);
     }
 }
