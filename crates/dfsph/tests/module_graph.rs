@@ -18,6 +18,9 @@ use std::path::{Path, PathBuf};
 /// A module path inside one crate: the names from the crate root (`[]` for lib.rs/main.rs).
 type ModPath = Vec<String>;
 
+/// The paths a module names, each with whether it is a re-export (`pub use`).
+type NamedPaths = Vec<(Vec<String>, bool)>;
+
 /// One crate's modules: path → source (comments, strings and test code removed).
 struct Crate {
     name: String,
@@ -348,7 +351,7 @@ fn inline_depths(code: &str) -> Vec<u8> {
 
 /// The paths a module's code names: every `use` tree, and every path written out from
 /// `crate::`, `super::` or `self::`, with whether it is a public re-export.
-fn named_paths(code: &str, children: &[String]) -> Vec<(Vec<String>, bool)> {
+fn named_paths(code: &str, children: &[String]) -> NamedPaths {
     let depths = inline_depths(code);
     // Inside an inline module the first `super`s climb to the file's own module.
     let from_file = |start: usize, mut path: Vec<String>| {
@@ -473,68 +476,66 @@ fn absolute(from: &ModPath, path: &[String], krate: &Crate) -> Option<Vec<String
 }
 
 /// The module an absolute path names: its longest prefix that is a module, followed through
-/// the crate root's re-exports.
-fn defining_module(path: &[String], krate: &Crate, reexports: &Reexports) -> Option<ModPath> {
+/// the crate root's re-exports (`face`). Only the root's re-exports are seen through: a module
+/// that names an item through another module's re-export depends on that module.
+fn defining_module(path: &[String], krate: &Crate, face: &RootFace) -> Option<ModPath> {
     let mut path = path.to_vec();
     for _ in 0..16 {
         let module_len = (0..=path.len())
             .rev()
             .find(|&n| krate.modules.contains_key(&path[..n]))?;
-        let module: ModPath = path[..module_len].to_vec();
-        let Some(item) = path.get(module_len) else {
-            return Some(module);
-        };
-        // Only the crate root's re-exports are its public face, seen through: a module that
-        // names an item through another module's re-export depends on that module.
-        let face = module
-            .is_empty()
-            .then(|| reexports.get(&(module.clone(), item.clone())));
-        match face.flatten() {
+        let target = path
+            .get(module_len)
+            .filter(|_| module_len == 0)
+            .and_then(|item| face.get(item));
+        match target {
             Some(target) => {
                 let mut next = target.clone();
                 next.extend(path[module_len + 1..].iter().cloned());
                 path = next;
             }
-            None => return Some(module),
+            None => return Some(path[..module_len].to_vec()),
         }
     }
     None
 }
 
-/// (module, name it re-exports) → the absolute path it re-exports.
-type Reexports = BTreeMap<(ModPath, String), Vec<String>>;
+/// The crate root's re-exports, its public face: name → the absolute path it re-exports.
+type RootFace = BTreeMap<String, Vec<String>>;
 
 /// Every dependency edge of one crate: (from, to) → the names that tie them.
 fn edges(krate: &Crate) -> BTreeMap<(ModPath, ModPath), BTreeSet<String>> {
-    let mut reexports = Reexports::new();
-    for (module, code) in &krate.modules {
-        for (path, public) in named_paths(code, &children(krate, module)) {
-            if !public {
-                continue;
-            }
-            if let Some(abs) = absolute(module, &path, krate) {
-                if let Some(name) = abs.last() {
-                    reexports.insert((module.clone(), name.clone()), abs.clone());
-                }
-            }
-        }
-    }
+    // Every module's named paths, made absolute, and whether each is a re-export.
+    let named: Vec<(&ModPath, NamedPaths)> = krate
+        .modules
+        .iter()
+        .map(|(module, code)| {
+            let paths = named_paths(code, &children(krate, module))
+                .into_iter()
+                .filter_map(|(path, public)| Some((absolute(module, &path, krate)?, public)))
+                .collect();
+            (module, paths)
+        })
+        .collect();
+    let face: RootFace = named
+        .iter()
+        .filter(|(module, _)| module.is_empty())
+        .flat_map(|(_, paths)| paths.iter().filter(|(_, public)| *public))
+        .filter_map(|(abs, _)| Some((abs.last()?.clone(), abs.clone())))
+        .collect();
     let mut out: BTreeMap<(ModPath, ModPath), BTreeSet<String>> = BTreeMap::new();
-    for (module, code) in &krate.modules {
-        for (path, _) in named_paths(code, &children(krate, module)) {
-            let Some(abs) = absolute(module, &path, krate) else {
-                continue;
-            };
-            let Some(target) = defining_module(&abs, krate, &reexports) else {
+    for (module, paths) in &named {
+        for (abs, _) in paths {
+            let Some(target) = defining_module(abs, krate, &face) else {
                 continue;
             };
             // A module's own items, and its ancestors' mere declarations of it, are not
             // edges; naming a module itself (`use crate::pressure;`) is.
-            if &target == module {
+            if &target == *module {
                 continue;
             }
             let name = abs.get(target.len()).cloned().unwrap_or_default();
-            out.entry((module.clone(), target))
+            out.entry(((*module).clone(), target))
                 .or_default()
                 .insert(name);
         }
