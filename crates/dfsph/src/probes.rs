@@ -151,7 +151,7 @@ pub fn wall_pressure_at(sim: &Simulation, x: Vec2, normal: Vec2) -> f64 {
         .hydrostatic_ghost_gradient(sim.gravity())
         .unwrap_or(Vec2::ZERO);
     let mass = sim.particle_mass() as f64;
-    let push = sim.applied_pressures_over_rho0();
+    let push = sim.applied_pressure_over_rho0();
     // The wall's particles under the sensor: tank body, behind the face, within a of the
     // sensor along it.
     let walls: Vec<(Vec2, f32, f32)> = sim
@@ -175,7 +175,7 @@ pub fn wall_pressure_at(sim: &Simulation, x: Vec2, normal: Vec2) -> f64 {
         if (xi - x).length_squared() >= reach * reach {
             continue;
         }
-        let push_i = wall_weight * push[i];
+        let push_i = wall_weight * push(i);
         if push_i == 0.0 && gravity == Vec2::ZERO {
             continue;
         }
@@ -205,7 +205,7 @@ pub fn pressure_at(sim: &Simulation, x: Vec2) -> Option<f64> {
     let rho0 = sim.rest_density() as f64;
     let mass = sim.particle_mass();
     let v0 = mass / sim.rest_density();
-    let push = sim.applied_pressures_over_rho0();
+    let push = sim.applied_pressure_over_rho0();
     // A bond reaches the window when one of its ends is within h (window) + h (bond length).
     let reach2 = 4.0 * h2;
     let fluid: Vec<(Vec2, f32)> = sim
@@ -213,7 +213,7 @@ pub fn pressure_at(sim: &Simulation, x: Vec2) -> Option<f64> {
         .iter()
         .enumerate()
         .filter(|(_, &xi)| (xi - x).length_squared() < reach2)
-        .map(|(i, &xi)| (xi, push[i]))
+        .map(|(i, &xi)| (xi, push(i)))
         .collect();
     // Fluid fraction of the window and the centroid of its fluid.
     let (mut phi, mut centroid) = (0.0f64, glam::DVec2::ZERO);

@@ -1380,15 +1380,15 @@ impl Simulation {
         self.pressure.pressure_force_scale()
     }
 
-    /// p/ρ0 (m²/s²) with which each fluid particle pushed its neighbours and the walls in the
-    /// last step, as the pressure solver applies it (`PressureSolver::applied_pressures`):
-    /// what a wall's force is read from (`probes`).
-    pub fn applied_pressures_over_rho0(&self) -> Vec<f32> {
-        self.pressure.applied_pressures(
-            &self.fluid,
-            self.stats.dt as f32,
-            self.settings.divergence_solve,
-        )
+    /// p/ρ0 (m²/s²) with which each fluid particle, by index, pushed its neighbours and the
+    /// walls in the last step, as the pressure solver applies it
+    /// (`PressureSolver::applied_pressure`): what a wall's force is read from (`probes`).
+    pub fn applied_pressure_over_rho0(&self) -> impl Fn(usize) -> f32 + '_ {
+        let (dt, divergence_solve) = (self.stats.dt as f32, self.settings.divergence_solve);
+        move |i| {
+            self.pressure
+                .applied_pressure(&self.fluid, i, dt, divergence_solve)
+        }
     }
 
     /// Boundary particle positions, m.

@@ -53,25 +53,25 @@ pub(crate) trait PressureSolver: Send + Sync {
         1.0
     }
 
-    /// p/ρ0 (m²/s²) with which each fluid particle pushed its neighbours and the walls in the
+    /// p/ρ0 (m²/s²) with which fluid particle `i` pushed its neighbours and the walls in the
     /// step just taken, of `dt`, exactly as this solver applies it: the stored pressure times
     /// [`Self::pressure_force_scale`], plus, where the divergence solve ran, its stiffness
     /// κᵛ/Δt (its impulse spread over the step; it carries much of an impact). The probes read
     /// the walls' forces off it.
-    fn applied_pressures(
+    fn applied_pressure(
         &self,
         fluid: &FluidParticles,
+        i: usize,
         dt: f32,
         divergence_solve: bool,
-    ) -> Vec<f32> {
-        let scale = self.pressure_force_scale();
-        let divergence = (divergence_solve && dt > 0.0).then_some(&fluid.divergence_stiffness);
-        (0..fluid.len())
-            .map(|i| {
-                let p = fluid.pressure_over_rho0[i] * scale;
-                p + divergence.map_or(0.0, |kv| kv[i] / dt)
-            })
-            .collect()
+    ) -> f32 {
+        let p = fluid.pressure_over_rho0[i] * self.pressure_force_scale();
+        let kv = if divergence_solve && dt > 0.0 {
+            fluid.divergence_stiffness[i] / dt
+        } else {
+            0.0
+        };
+        p + kv
     }
 
     /// The pressure over ρ0 (m²/s²) the first step starts from, for particles at `position`

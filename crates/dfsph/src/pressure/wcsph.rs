@@ -61,14 +61,9 @@ impl PressureSolver for Wcsph {
 
     /// `p/ρ0` over `(ρ/ρ0)²`, the symmetric form's own weight (below); there is no divergence
     /// solve.
-    fn applied_pressures(&self, fluid: &FluidParticles, _: f32, _: bool) -> Vec<f32> {
-        let scale = self.pressure_force_scale();
-        (0..fluid.len())
-            .map(|i| {
-                let s = fluid.density_ratio[i].max(1.0e-3);
-                fluid.pressure_over_rho0[i] * scale / (s * s)
-            })
-            .collect()
+    fn applied_pressure(&self, fluid: &FluidParticles, i: usize, _: f32, _: bool) -> f32 {
+        let s = fluid.density_ratio[i].max(1.0e-3);
+        fluid.pressure_over_rho0[i] * self.pressure_force_scale() / (s * s)
     }
 }
 
