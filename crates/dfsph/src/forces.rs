@@ -42,11 +42,13 @@ pub(crate) fn non_pressure_accelerations(
     let wall_friction = WallFriction::new(laplacian, step.kernel);
     let ghosts = ghost_slope.map(|slope| GhostPressure { slope });
     let pointer = pointer.filter(PointerForce::acts);
+    // XSPH and the Laplacian act through the fluid pair sums of the pass below.
+    let (smooth_on, laplace_on) = (xsph.coefficient > 0.0, laplacian.kinematic > 0.0);
     // The models that act, in the order their accelerations are added.
     let models: Vec<&dyn AccelerationModel> = [
         Some(&gravity as &dyn AccelerationModel),
-        (xsph.coefficient > 0.0).then_some(xsph as &dyn AccelerationModel),
-        (laplacian.kinematic > 0.0).then_some(laplacian as &dyn AccelerationModel),
+        smooth_on.then_some(xsph as &dyn AccelerationModel),
+        laplace_on.then_some(laplacian as &dyn AccelerationModel),
         ghosts.as_ref().map(|g| g as &dyn AccelerationModel),
         wall_friction
             .acts()
@@ -56,7 +58,6 @@ pub(crate) fn non_pressure_accelerations(
     .into_iter()
     .flatten()
     .collect();
-    let (smooth_on, laplace_on) = (xsph.coefficient > 0.0, laplacian.kinematic > 0.0);
     let (kernel, nb) = (step.kernel, &step.nb);
     let h2 = Laplacian::regularisation(kernel);
     let (pos, vel) = (&fluid.position, &fluid.velocity);
