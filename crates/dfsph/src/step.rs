@@ -98,4 +98,14 @@ impl<'a> Neighborhood<'a> {
             blocks: &cache.blocks,
         }
     }
+
+    /// Fluid particle `i`'s wall neighbours, with the `∇W_ib` cached for each, in list order.
+    pub fn walls_of(&self, i: usize) -> impl Iterator<Item = (usize, Vec2)> + '_ {
+        let grads = &self.boundary_grad[self.boundary.range(i)];
+        self.boundary
+            .of(i)
+            .iter()
+            .zip(grads)
+            .map(|(&b, &g)| (b as usize, g))
+    }
 }

@@ -20,12 +20,9 @@ pub(crate) struct GhostPressure {
 
 impl AccelerationModel for GhostPressure {
     fn add_to(&self, p: &Particle, acc: &mut Vec2) {
-        let (nb, boundary) = (&p.step.nb, p.step.boundary);
-        let i = p.index;
-        let r = nb.boundary.range(i);
+        let boundary = p.step.boundary;
         let mut push = Vec2::ZERO;
-        for (&b, &g) in nb.boundary.of(i).iter().zip(&nb.boundary_grad[r]) {
-            let b = b as usize;
+        for (b, g) in p.step.nb.walls_of(p.index) {
             push += boundary.volume[b] * self.slope.dot(boundary.position[b] - p.position) * g;
         }
         *acc -= push;

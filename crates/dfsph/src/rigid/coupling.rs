@@ -53,16 +53,13 @@ pub(crate) fn body_impulses(
     let dt = step.dt;
     let mut sums = vec![(glam::DVec2::ZERO, 0.0f64); centres.len()];
     for i in 0..fluid.len() {
-        let walls = nb.boundary.of(i);
-        if walls.is_empty() {
+        if nb.boundary.of(i).is_empty() {
             continue;
         }
         let kappa = terms.divergence_stiffness.map_or(0.0, |k| k[i])
             + terms.pressure_to_kappa * fluid.pressure_over_rho0[i];
         let xi = fluid.position[i];
-        let grads = &nb.boundary_grad[nb.boundary.range(i)];
-        for (&b, &g) in walls.iter().zip(grads) {
-            let b = b as usize;
+        for (b, g) in nb.walls_of(i) {
             let Some(k) = rigid_of[boundary.body[b] as usize] else {
                 continue;
             };

@@ -36,11 +36,9 @@ impl AccelerationModel for WallFriction {
     /// `8ν_b Σ_b Ψ_b (v_ib·x_ib)/(|x_ib|² + eps2) ∇W_ib` over the particle's wall neighbours
     /// (with their cached `∇W_ib`).
     fn add_to(&self, p: &Particle, acc: &mut Vec2) {
-        let (nb, boundary) = (&p.step.nb, p.step.boundary);
-        let r = nb.boundary.range(p.index);
+        let boundary = p.step.boundary;
         let mut laplace = Vec2::ZERO;
-        for (&b, &g) in nb.boundary.of(p.index).iter().zip(&nb.boundary_grad[r]) {
-            let b = b as usize;
+        for (b, g) in p.step.nb.walls_of(p.index) {
             let xib = p.position - boundary.position[b];
             let vib = p.velocity - boundary.velocity[b];
             laplace += boundary.volume[b] * g * (vib.dot(xib) / (xib.length_squared() + self.eps2));
