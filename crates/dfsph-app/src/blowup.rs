@@ -2,7 +2,7 @@
 //! created, or a density solve that keeps ending at its iteration cap.
 //!
 //! In a closed tank without actions the mechanical energy of the water and the bodies
-//! (`Simulation::mechanical_energy`) can only fall: viscosity and the solves dissipate, and
+//! (`World::mechanical_energy`) can only fall: viscosity and the solves dissipate, and
 //! gravity only turns potential into kinetic energy. Measured over 3 s of every built-in
 //! scene, the largest rise above the lowest energy seen before it was 0.36 % of `M·|g|·H`
 //! (the `floating` scene, whose bodies' spin is not counted; the dam break 0.10 %,

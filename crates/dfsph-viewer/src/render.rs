@@ -187,7 +187,7 @@ impl Coloring {
     }
 
     /// Fill `out` with the field this colouring shows, one value per fluid particle in
-    /// [`Simulation::positions`] order, in the colouring's unit.
+    /// [`dfsph::world::World::positions`] order, in the colouring's unit.
     pub fn values(self, sim: &Simulation, out: &mut Vec<f32>) {
         out.clear();
         match self {

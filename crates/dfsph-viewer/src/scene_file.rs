@@ -57,7 +57,7 @@ pub fn radius_range(scene: &Scene, max_particles: usize) -> Option<(f64, f64)> {
     Some((lo.min(r), hi.max(r)))
 }
 
-/// The simulation as it stands, as a scene file's contents ([`Simulation::to_scene`]), with
+/// The simulation as it stands, as a scene file's contents ([`dfsph::world::World::to_scene`]), with
 /// the `max_particles` the scene was loaded with (the viewer runs with a smaller pour budget),
 /// and checked by the scene validator, so that what is written loads again.
 pub fn saved_scene(sim: &Simulation, max_particles: usize) -> anyhow::Result<Scene> {

@@ -17,7 +17,7 @@ pub const MAX_STROKES: usize = 64;
 /// One thing the user added that undo can take away.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Stroke {
-    /// The `index`-th wall drawn ([`Simulation::drawn_wall_count`]).
+    /// The `index`-th wall drawn ([`dfsph::world::World::drawn_wall_count`]).
     Wall { index: usize },
     /// The particles poured with ids `from..to`.
     Pour { from: u32, to: u32 },

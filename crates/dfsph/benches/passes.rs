@@ -87,7 +87,7 @@ fn state(d: f64, steps: usize) -> State {
 
     let settings = SolverSettings::from_scene(&sc);
     let mut boundary_grid = Grid::new(kernel.support());
-    // As the simulation sizes it (`Simulation::update_neighborhoods`).
+    // As the simulation sizes it (`CpuBackend::update_neighborhoods`).
     boundary_grid.set_dense_cells_floor(4 * sim.positions().len());
     let order = boundary_grid.build(sim.boundary_positions()).to_vec();
     let mut boundary = BoundaryParticles::default();

@@ -11,7 +11,7 @@ use crate::forces::PointerForce;
 use crate::neighbors::Grid;
 use crate::rigid::{BodySpec, MAX_BODIES};
 use crate::scene::{Packing, Scene, SceneError, SolverParams, TimeStepParams, ViscosityParams};
-use crate::simulation::Simulation;
+use crate::world::World;
 
 /// One user action. Held actions (`ShakeTank`, `Push`) stay in force until replaced.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -45,12 +45,12 @@ pub enum Action {
     /// Remove fluid and drawn walls (not the tank) within `radius` of `at`.
     Erase { at: Vec2, radius: f32 },
     /// Remove what is left of the `index`-th wall drawn since the start (0-based, in the
-    /// order drawn; [`Simulation::drawn_wall_count`]): the viewer's undo of a wall. The water
+    /// order drawn; [`World::drawn_wall_count`]): the viewer's undo of a wall. The water
     /// the wall displaced is not brought back. Refused for an index not drawn yet.
     RemoveDrawnWall { index: usize },
     /// Remove the fluid particles whose id lies in `from..to`, wherever they are now: the
     /// viewer's undo of a pour (poured water takes the next ids in order,
-    /// [`Simulation::next_particle_id`]). Refused when `from > to`.
+    /// [`World::next_particle_id`]). Refused when `from > to`.
     RemoveParticles { from: u32, to: u32 },
     /// Drop a rigid body into the tank ([`crate::rigid`]): validated like a scene's `bodies`
     /// entry; fluid it covers is removed.
@@ -95,9 +95,10 @@ pub struct ActionOutcome {
     pub rejected: Option<&'static str>,
 }
 
-impl Simulation {
-    /// Apply a user action between steps.
-    pub fn apply(&mut self, action: &Action) -> ActionOutcome {
+impl World {
+    /// Apply a user action between steps; [`crate::Simulation::apply`] tells the backend what
+    /// it changed.
+    pub(crate) fn apply(&mut self, action: &Action) -> ActionOutcome {
         let mut out = ActionOutcome::default();
         match action {
             Action::ShakeTank { direction } => {
@@ -239,11 +240,8 @@ impl Simulation {
                     None => &self.scene,
                 };
                 let limits = crate::memory::MemoryLimits::of_this_process_and_user(self.max_memory);
-                match Simulation::new_within(scene, &limits) {
-                    Ok(mut sim) => {
-                        // The caller's stop flag (Ctrl-C in `run`) holds across a reset,
-                        // as the memory limit does.
-                        sim.stop_flag = self.stop_flag.clone();
+                match World::new_within(scene, &limits) {
+                    Ok(sim) => {
                         out.removed = self.fluid.len();
                         out.added = sim.fluid_count();
                         out.boundary_change =
@@ -272,7 +270,6 @@ impl Simulation {
         match scene.validate() {
             Ok(()) => {
                 self.scene = scene;
-                self.resolve_scene();
                 None
             }
             Err(_) => Some(rejection),
@@ -522,6 +519,7 @@ impl Simulation {
 mod tests {
     use super::*;
     use crate::scene;
+    use crate::Simulation;
 
     /// A built-in scene at particle radius `radius` with a rectangular obstacle added.
     fn with_box(name: &str, radius: f64, min: [f64; 2], max: [f64; 2]) -> scene::Scene {

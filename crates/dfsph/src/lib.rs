@@ -25,8 +25,10 @@
 )]
 
 pub mod actions;
+pub mod backend;
 pub mod blocked;
 pub mod boundary;
+pub mod cpu;
 pub mod displacement;
 pub mod forces;
 pub mod kernel;
@@ -51,6 +53,7 @@ pub mod simulation;
 pub mod solver;
 pub mod step;
 pub(crate) mod viscosity;
+pub mod world;
 
 pub use actions::Action;
 pub use glam::Vec2;

@@ -519,7 +519,8 @@ mod tests {
                 let y = sim.fluid.position[i].y;
                 let row = ((y - r) / d).round() as i32;
                 let sign = if row % 2 == 0 { 1.0 } else { -1.0 };
-                sim.fluid.pressure_over_rho0[i] = (rho_g_h * (1.0 - y) + sign * delta) / 1000.0;
+                sim.world.fluid.pressure_over_rho0[i] =
+                    (rho_g_h * (1.0 - y) + sign * delta) / 1000.0;
             }
             let mid = pressure_at(&sim, Vec2::new(1.0, 0.5)).unwrap();
             let near_surface = pressure_at(&sim, Vec2::new(1.0, 0.98)).unwrap();

@@ -1,14 +1,14 @@
-//! A running simulation written back as a scene ([`Simulation::to_scene`]): every fluid
+//! A running simulation written back as a scene ([`World::to_scene`]): every fluid
 //! particle's position and velocity in `particles`, the scene's obstacles and the walls drawn
 //! since in `obstacles`, and gravity and every parameter as they stand. `dfsph2d run` and
 //! `dfsph2d view` accept the result like any scene file, and
-//! [`Simulation::new`] places the particles exactly where they were.
+//! [`crate::Simulation::new`] places the particles exactly where they were.
 
 use glam::Vec2;
 
 use crate::boundary::BoundarySamples;
 use crate::scene::{Obstacle, ParticleList, Point, Scene};
-use crate::simulation::Simulation;
+use crate::world::World;
 
 /// `x` as the f64 with the fewest decimal digits that reads back as the same f32, so a saved
 /// scene writes 0.005 rather than 0.004999999888241291 and loads to the same bits.
@@ -21,7 +21,7 @@ fn point(p: Vec2) -> Point {
     [short(p.x), short(p.y)]
 }
 
-impl Simulation {
+impl World {
     /// The current state as a scene: the fluid as listed particles (`particles`, no
     /// blocks), the obstacles and drawn walls, gravity and every parameter as they stand.
     ///
@@ -158,6 +158,7 @@ mod tests {
     use super::*;
     use crate::scene;
     use crate::Action;
+    use crate::Simulation;
 
     fn coarse(name: &str) -> Scene {
         let mut s = scene::builtin(name).unwrap();
