@@ -454,21 +454,8 @@ fn cgroup_memory() -> Option<(u64, u64)> {
 /// The soft `RLIMIT_AS` of this process (`ulimit -v`), bytes; `None` when unlimited.
 #[cfg(unix)]
 fn address_space_limit() -> Option<u64> {
-    let mut limit = libc::rlimit {
-        rlim_cur: 0,
-        rlim_max: 0,
-    };
-    // SAFETY: getrlimit writes one `rlimit` through a valid pointer.
-    if unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut limit) } != 0 {
-        return None;
-    }
-    if limit.rlim_cur == libc::RLIM_INFINITY {
-        None
-    } else {
-        // `rlim_t` is u64 on Linux, not on every Unix.
-        #[allow(clippy::unnecessary_cast)]
-        Some(limit.rlim_cur as u64)
-    }
+    // `None` for the current limit is RLIM_INFINITY.
+    rustix::process::getrlimit(rustix::process::Resource::As).current
 }
 
 #[cfg(not(unix))]
