@@ -1,0 +1,78 @@
+// The SPH density relative to rest of every fluid particle: Σ_j V W(x_i − x_j) over the
+// fluid (the particle itself included) plus Σ_b Ψ_b W(x_i − x_b) over the walls, with the 2D
+// cubic spline of support h (`dfsph::kernel::Kernel`). Both sets are sorted into the same
+// cells (`grid_*.wgsl`), whose side is h: the 3 × 3 cells around a particle hold every
+// neighbour, visited row by row and, in a cell, by index.
+struct Params {
+    origin: vec2<f32>,
+    inv_cell: f32,
+    n: u32,
+    nx: u32,
+    ny: u32,
+    h: f32,
+    k: f32,
+    volume: f32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> fluid: array<vec2<f32>>;
+@group(0) @binding(2) var<storage, read> fluid_sorted: array<u32>;
+@group(0) @binding(3) var<storage, read> fluid_starts: array<u32>;
+@group(0) @binding(4) var<storage, read> walls: array<vec2<f32>>;
+@group(0) @binding(5) var<storage, read> wall_volume: array<f32>;
+@group(0) @binding(6) var<storage, read> wall_sorted: array<u32>;
+@group(0) @binding(7) var<storage, read> wall_starts: array<u32>;
+@group(0) @binding(8) var<storage, read_write> density: array<f32>;
+
+// The cubic spline W(r), 1/m² (k = 40 / (7π h²)).
+fn w(r: f32) -> f32 {
+    let q = r / params.h;
+    if q <= 0.5 {
+        let q2 = q * q;
+        return params.k * (6.0 * q2 * q - 6.0 * q2 + 1.0);
+    }
+    if q < 1.0 {
+        let a = 1.0 - q;
+        return 2.0 * params.k * a * a * a;
+    }
+    return 0.0;
+}
+
+@compute @workgroup_size(64)
+fn density_ratio(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if i >= params.n {
+        return;
+    }
+    let x = fluid[i];
+    let c = floor((x - params.origin) * params.inv_cell);
+    let cx = i32(clamp(c.x, 0.0, f32(params.nx - 1u)));
+    let cy = i32(clamp(c.y, 0.0, f32(params.ny - 1u)));
+    let h2 = params.h * params.h;
+    var fluid_sum = 0.0;
+    var wall_sum = 0.0;
+    for (var y = max(cy - 1, 0); y <= min(cy + 1, i32(params.ny) - 1); y++) {
+        for (var xx = max(cx - 1, 0); xx <= min(cx + 1, i32(params.nx) - 1); xx++) {
+            let cell = u32(y) * params.nx + u32(xx);
+            for (var s = fluid_starts[cell]; s < fluid_starts[cell + 1u]; s++) {
+                let d = x - fluid[fluid_sorted[s]];
+                let r2 = dot(d, d);
+                if r2 < h2 {
+                    fluid_sum += w(sqrt(r2));
+                }
+            }
+            for (var s = wall_starts[cell]; s < wall_starts[cell + 1u]; s++) {
+                let b = wall_sorted[s];
+                let d = x - walls[b];
+                let r2 = dot(d, d);
+                if r2 < h2 {
+                    wall_sum += wall_volume[b] * w(sqrt(r2));
+                }
+            }
+        }
+    }
+    density[i] = params.volume * fluid_sum + wall_sum;
+}
