@@ -1,10 +1,12 @@
-//! The SPH density of every fluid particle on the GPU (TVCG 2017, eq. 1, relative to ρ0,
-//! with Akinci et al.'s wall volumes): `ρ_i/ρ0 = Σ_j V W_ij + Σ_b Ψ_b W_ib`.
+//! The SPH density and the DFSPH factor of every fluid particle on the GPU (TVCG 2017, eq. 1
+//! relative to ρ0 and eq. 13 in volumes, with Akinci et al.'s wall volumes):
+//! `dfsph::solver::density_and_factor`.
 
 use crate::device::{Gpu, GpuError};
 use crate::grid::{groups, GridLayout, GridPass};
 
-/// The particles and walls of a density computation, as the CPU solver holds them.
+/// The particles and walls of a density computation, as the CPU solver holds them. The
+/// kernel is the 2D cubic spline.
 pub struct DensityInput<'a> {
     /// Fluid positions, m.
     pub fluid: &'a [[f32; 2]],
@@ -15,6 +17,21 @@ pub struct DensityInput<'a> {
     pub volume: f32,
     /// The cubic spline's support radius h, m.
     pub support: f32,
+    /// The walls' share of the gradient sum (`BoundaryModel::gradient_weight`).
+    pub wall_weight: f32,
+    /// Cap on the factor, m² (`SolverSettings::max_factor_ratio` × the lattice's factor).
+    pub max_factor: f32,
+}
+
+/// What [`DensityPass::run`] gives per fluid particle, in the input's order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Densities {
+    /// ρ_i/ρ0.
+    pub ratio: Vec<f32>,
+    /// The DFSPH factor, m².
+    pub factor: Vec<f32>,
+    /// g_i = Σ_j V ∇W_ij + w Σ_b Ψ_b ∇W_ib, 1/m.
+    pub grad_sum: Vec<[f32; 2]>,
 }
 
 #[repr(C)]
@@ -28,10 +45,12 @@ struct Params {
     h: f32,
     k: f32,
     volume: f32,
-    pad: [u32; 3],
+    wall_weight: f32,
+    max_factor: f32,
+    eps: f32,
 }
 
-/// The density pass and the grid it builds first.
+/// The density and factor pass and the grid it builds first.
 pub struct DensityPass {
     grid: GridPass,
     density: wgpu::ComputePipeline,
@@ -41,12 +60,15 @@ impl DensityPass {
     pub fn new(gpu: &Gpu) -> Self {
         Self {
             grid: GridPass::new(gpu),
-            density: gpu.pipeline(include_str!("shaders/density.wgsl"), "density_ratio"),
+            density: gpu.pipeline(
+                include_str!("shaders/density_factor.wgsl"),
+                "density_factor",
+            ),
         }
     }
 
-    /// ρ_i/ρ0 of every fluid particle of `input`, in its order.
-    pub fn density_ratios(&self, gpu: &Gpu, input: &DensityInput) -> Result<Vec<f32>, GpuError> {
+    /// The densities and factors of every fluid particle of `input`.
+    pub fn run(&self, gpu: &Gpu, input: &DensityInput) -> Result<Densities, GpuError> {
         assert_eq!(
             input.walls.len(),
             input.wall_volumes.len(),
@@ -72,11 +94,14 @@ impl DensityPass {
             h,
             k: 40.0 / (7.0 * std::f32::consts::PI * h * h),
             volume: input.volume,
-            pad: [0; 3],
+            wall_weight: input.wall_weight,
+            max_factor: input.max_factor,
+            // The CPU's guard: a particle with (almost) no neighbours gets no pressure.
+            eps: 1.0e-6 / (h * h),
         };
         let uniform = gpu.uniform("density", &params);
         let volumes = gpu.storage("wall volumes", input.wall_volumes);
-        let out = gpu.zeroed::<f32>("density", n);
+        let out = gpu.zeroed::<[f32; 4]>("density and factor", n);
         let group = gpu.bind(
             &self.density,
             &[
@@ -99,6 +124,11 @@ impl DensityPass {
             pass.dispatch_workgroups(groups(n as u32, 64), 1, 1);
         }
         gpu.queue.submit([encoder.finish()]);
-        gpu.read(&out, n)
+        let values: Vec<[f32; 4]> = gpu.read(&out, n)?;
+        Ok(Densities {
+            ratio: values.iter().map(|v| v[0]).collect(),
+            factor: values.iter().map(|v| v[1]).collect(),
+            grad_sum: values.iter().map(|v| [v[2], v[3]]).collect(),
+        })
     }
 }

@@ -61,7 +61,7 @@ fn the_grid_is_a_stable_counting_sort_and_the_same_on_every_run() {
 }
 
 #[test]
-fn densities_are_the_cpu_solvers() {
+fn densities_and_factors_are_the_cpu_solvers() {
     let gpu = gpu();
     let pass = DensityPass::new(&gpu);
     for name in ["dam-break", "hydrostatic"] {
@@ -70,18 +70,28 @@ fn densities_are_the_cpu_solvers() {
         let sim = dfsph::Simulation::new(&scene).unwrap();
         let v2 = |v: &[dfsph::Vec2]| v.iter().map(|p| [p.x, p.y]).collect::<Vec<_>>();
         let (fluid, walls) = (v2(sim.positions()), v2(sim.boundary_positions()));
+        let kernel = *sim.kernel();
+        let volume = sim.particle_mass() / sim.rest_density();
+        let settings = dfsph::settings::SolverSettings::from_scene(&scene);
+        let max_factor = settings.max_factor_ratio
+            * dfsph::solver::lattice_factor(&kernel, sim.spacing(), volume);
+        // The conjugate-gradient solve's mirrored walls count twice in the gradient sum.
+        let wall_weight = 2.0;
         let input = DensityInput {
             fluid: &fluid,
             walls: &walls,
             wall_volumes: sim.boundary_volumes(),
-            volume: sim.particle_mass() / sim.rest_density(),
-            support: sim.kernel().support(),
+            volume,
+            support: kernel.support(),
+            wall_weight,
+            max_factor,
         };
-        let gpu_density = pass.density_ratios(&gpu, &input).unwrap();
+        let out = pass.run(&gpu, &input).unwrap();
         let cpu = sim.density_ratios();
-        assert_eq!(gpu_density.len(), cpu.len());
+        assert_eq!(out.ratio.len(), cpu.len());
         // The same sums in another order: a few units in the last place of f32.
-        let worst = gpu_density
+        let worst = out
+            .ratio
             .iter()
             .zip(cpu)
             .map(|(g, c)| (g - c).abs() / c)
@@ -92,13 +102,85 @@ fn densities_are_the_cpu_solvers() {
             .iter()
             .fold((f32::MAX, 0.0f32), |(a, b), &s| (a.min(s), b.max(s)));
         assert!(lo < 0.9 && hi > 0.99, "{name}: densities {lo}..{hi}");
+        // The factors and gradient sums against the formula summed on the host in f64.
+        let (pos, wpos, wvol) = (
+            sim.positions(),
+            sim.boundary_positions(),
+            sim.boundary_volumes(),
+        );
+        let mut capped = 0;
+        for i in 0..pos.len() {
+            let (mut g, mut scale, mut sq) = (glam_d(0.0, 0.0), 0.0f64, 0.0f64);
+            for (j, &xj) in pos.iter().enumerate() {
+                if j != i {
+                    let gw = kernel.grad_w(pos[i] - xj) * volume;
+                    g += glam_d(gw.x as f64, gw.y as f64);
+                    scale += gw.length() as f64;
+                    sq += gw.length_squared() as f64;
+                }
+            }
+            for (&xb, &vb) in wpos.iter().zip(wvol) {
+                let gw = kernel.grad_w(pos[i] - xb) * (vb * wall_weight);
+                g += glam_d(gw.x as f64, gw.y as f64);
+                scale += gw.length() as f64;
+            }
+            let got = out.grad_sum[i];
+            let err = ((got[0] as f64 - g.0).powi(2) + (got[1] as f64 - g.1).powi(2)).sqrt();
+            assert!(err < 1e-5 * scale, "{name}: g_{i} {got:?} against {g:?}");
+            let denom = g.0 * g.0 + g.1 * g.1 + sq;
+            let want = (1.0 / denom).min(max_factor as f64);
+            capped += (want == max_factor as f64) as usize;
+            let rel = (out.factor[i] as f64 - want).abs() / want;
+            assert!(
+                rel < 1e-5,
+                "{name}: factor_{i} {} against {want}",
+                out.factor[i]
+            );
+        }
         println!(
-            "{name}: {} particles, worst relative difference {worst:e}",
+            "{name}: {} particles, densities within {worst:e}, {capped} factors at the cap",
             cpu.len()
         );
         // The same bits on a second run.
-        assert_eq!(pass.density_ratios(&gpu, &input).unwrap(), gpu_density);
+        assert_eq!(pass.run(&gpu, &input).unwrap(), out);
     }
+}
+
+/// A point of f64 components (the host's sums).
+fn glam_d(x: f64, y: f64) -> D2 {
+    D2(x, y)
+}
+
+#[derive(Clone, Copy, Debug)]
+struct D2(f64, f64);
+
+impl std::ops::AddAssign for D2 {
+    fn add_assign(&mut self, o: D2) {
+        self.0 += o.0;
+        self.1 += o.1;
+    }
+}
+
+#[test]
+fn a_lone_particle_gets_no_factor_and_a_barely_touching_pair_the_cap() {
+    let gpu = gpu();
+    let h = 0.04;
+    // No walls at all: the pass must also take empty wall buffers.
+    let fluid = [[0.0, 0.0], [1.0, 1.0], [1.0 + 0.9 * h, 1.0]];
+    let input = DensityInput {
+        fluid: &fluid,
+        walls: &[],
+        wall_volumes: &[],
+        volume: 4.0e-4,
+        support: h,
+        wall_weight: 2.0,
+        max_factor: 1.0e-3,
+    };
+    let out = DensityPass::new(&gpu).run(&gpu, &input).unwrap();
+    assert_eq!(out.factor, vec![0.0, 1.0e-3, 1.0e-3], "{out:?}");
+    // Alone, a particle's density is its own kernel value, V·W(0).
+    let w0 = 40.0 / (7.0 * std::f32::consts::PI * h * h);
+    assert!((out.ratio[0] - 4.0e-4 * w0).abs() < 1e-6 * w0, "{out:?}");
 }
 
 #[test]

@@ -1,6 +1,9 @@
-// The SPH density relative to rest of every fluid particle: Σ_j V W(x_i − x_j) over the
-// fluid (the particle itself included) plus Σ_b Ψ_b W(x_i − x_b) over the walls, with the 2D
-// cubic spline of support h (`dfsph::kernel::Kernel`). Both sets are sorted into the same
+// Per fluid particle, the SPH density relative to rest, Σ_j V W(x_i − x_j) over the fluid
+// (the particle itself included) plus Σ_b Ψ_b W(x_i − x_b) over the walls, and the DFSPH
+// factor 1 / (|g_i|² + Σ_j |V ∇W_ij|²) with g_i = Σ_j V ∇W_ij + w Σ_b Ψ_b ∇W_ib (TVCG 2017,
+// eq. 13 in volumes; w the walls' gradient weight), at most `max_factor`, 0 where the sums
+// are below `eps`: `dfsph::solver::density_and_factor`. The 2D cubic spline of support h
+// (`dfsph::kernel::Kernel`). Both sets are sorted into the same
 // cells (`grid_*.wgsl`), whose side is h: the 3 × 3 cells around a particle hold every
 // neighbour, visited row by row and, in a cell, by index.
 struct Params {
@@ -12,9 +15,9 @@ struct Params {
     h: f32,
     k: f32,
     volume: f32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
+    wall_weight: f32,
+    max_factor: f32,
+    eps: f32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -25,7 +28,8 @@ struct Params {
 @group(0) @binding(5) var<storage, read> wall_volume: array<f32>;
 @group(0) @binding(6) var<storage, read> wall_sorted: array<u32>;
 @group(0) @binding(7) var<storage, read> wall_starts: array<u32>;
-@group(0) @binding(8) var<storage, read_write> density: array<f32>;
+// (ρ/ρ0, factor, g_i).
+@group(0) @binding(8) var<storage, read_write> out: array<vec4<f32>>;
 
 // The cubic spline W(r), 1/m² (k = 40 / (7π h²)).
 fn w(r: f32) -> f32 {
@@ -41,8 +45,24 @@ fn w(r: f32) -> f32 {
     return 0.0;
 }
 
+// ∇_i W(x_i − x_j) for the offset d = x_i − x_j at distance r > 0: dW/dq / h · d / r.
+fn grad_w(d: vec2<f32>, r: f32) -> vec2<f32> {
+    let q = r / params.h;
+    if r <= 1.0e-9 || q >= 1.0 {
+        return vec2<f32>(0.0);
+    }
+    var dw = 0.0;
+    if q <= 0.5 {
+        dw = params.k * (18.0 * q * q - 12.0 * q);
+    } else {
+        let a = 1.0 - q;
+        dw = -6.0 * params.k * a * a;
+    }
+    return d * (dw / params.h / r);
+}
+
 @compute @workgroup_size(64)
-fn density_ratio(@builtin(global_invocation_id) id: vec3<u32>) {
+fn density_factor(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
     if i >= params.n {
         return;
@@ -54,6 +74,9 @@ fn density_ratio(@builtin(global_invocation_id) id: vec3<u32>) {
     let h2 = params.h * params.h;
     var fluid_sum = 0.0;
     var wall_sum = 0.0;
+    var fluid_grad = vec2<f32>(0.0);
+    var wall_grad = vec2<f32>(0.0);
+    var grad_sq = 0.0;
     for (var y = max(cy - 1, 0); y <= min(cy + 1, i32(params.ny) - 1); y++) {
         for (var xx = max(cx - 1, 0); xx <= min(cx + 1, i32(params.nx) - 1); xx++) {
             let cell = u32(y) * params.nx + u32(xx);
@@ -61,7 +84,11 @@ fn density_ratio(@builtin(global_invocation_id) id: vec3<u32>) {
                 let d = x - fluid[fluid_sorted[s]];
                 let r2 = dot(d, d);
                 if r2 < h2 {
-                    fluid_sum += w(sqrt(r2));
+                    let r = sqrt(r2);
+                    fluid_sum += w(r);
+                    let g = params.volume * grad_w(d, r);
+                    fluid_grad += g;
+                    grad_sq += dot(g, g);
                 }
             }
             for (var s = wall_starts[cell]; s < wall_starts[cell + 1u]; s++) {
@@ -69,10 +96,18 @@ fn density_ratio(@builtin(global_invocation_id) id: vec3<u32>) {
                 let d = x - walls[b];
                 let r2 = dot(d, d);
                 if r2 < h2 {
-                    wall_sum += wall_volume[b] * w(sqrt(r2));
+                    let r = sqrt(r2);
+                    wall_sum += wall_volume[b] * w(r);
+                    wall_grad += wall_volume[b] * grad_w(d, r);
                 }
             }
         }
     }
-    density[i] = params.volume * fluid_sum + wall_sum;
+    let g = fluid_grad + params.wall_weight * wall_grad;
+    let denom = dot(g, g) + grad_sq;
+    var factor = 0.0;
+    if denom > params.eps {
+        factor = min(1.0 / denom, params.max_factor);
+    }
+    out[i] = vec4<f32>(params.volume * fluid_sum + wall_sum, factor, g);
 }
