@@ -2,7 +2,10 @@
 //! `.ci/run` installs): no test here is skipped for want of an adapter; without one they fail
 //! with the device's error.
 
-use dfsph_gpu::{AdapterChoice, DensityInput, DensityPass, Gpu, GridLayout, GridPass};
+use dfsph_gpu::{
+    AdapterChoice, DensityPass, DeviceParticles, Gpu, GridLayout, GridPass, Operators,
+    ParticleInput,
+};
 
 fn gpu() -> Gpu {
     Gpu::new(AdapterChoice::Software).unwrap_or_else(|e| panic!("{e}"))
@@ -63,30 +66,13 @@ fn the_grid_is_a_stable_counting_sort_and_the_same_on_every_run() {
 #[test]
 fn densities_and_factors_are_the_cpu_solvers() {
     let gpu = gpu();
-    let pass = DensityPass::new(&gpu);
+    let (grid, pass) = (GridPass::new(&gpu), DensityPass::new(&gpu));
     for name in ["dam-break", "hydrostatic"] {
-        let mut scene = dfsph::scene::builtin(name).unwrap();
-        scene.particle_radius = 0.02;
-        let sim = dfsph::Simulation::new(&scene).unwrap();
-        let v2 = |v: &[dfsph::Vec2]| v.iter().map(|p| [p.x, p.y]).collect::<Vec<_>>();
-        let (fluid, walls) = (v2(sim.positions()), v2(sim.boundary_positions()));
-        let kernel = *sim.kernel();
-        let volume = sim.particle_mass() / sim.rest_density();
-        let settings = dfsph::settings::SolverSettings::from_scene(&scene);
-        let max_factor = settings.max_factor_ratio
-            * dfsph::solver::lattice_factor(&kernel, sim.spacing(), volume);
-        // The conjugate-gradient solve's mirrored walls count twice in the gradient sum.
-        let wall_weight = 2.0;
-        let input = DensityInput {
-            fluid: &fluid,
-            walls: &walls,
-            wall_volumes: sim.boundary_volumes(),
-            volume,
-            support: kernel.support(),
-            wall_weight,
-            max_factor,
-        };
-        let out = pass.run(&gpu, &input).unwrap();
+        let case = Case::of(name);
+        let (sim, kernel, volume) = (&case.sim, *case.sim.kernel(), case.volume);
+        let (wall_weight, max_factor) = (case.wall_weight, case.max_factor);
+        let particles = DeviceParticles::upload(&gpu, &grid, &case.input());
+        let out = pass.run(&gpu, &particles).read(&gpu).unwrap();
         let cpu = sim.density_ratios();
         assert_eq!(out.ratio.len(), cpu.len());
         // The same sums in another order: a few units in the last place of f32.
@@ -142,8 +128,153 @@ fn densities_and_factors_are_the_cpu_solvers() {
             cpu.len()
         );
         // The same bits on a second run.
-        assert_eq!(pass.run(&gpu, &input).unwrap(), out);
+        assert_eq!(pass.run(&gpu, &particles).read(&gpu).unwrap(), out);
     }
+}
+
+/// A built-in scene at r = 2 cm, as the CPU solver starts it, with the GPU passes' inputs.
+struct Case {
+    sim: dfsph::Simulation,
+    fluid: Vec<[f32; 2]>,
+    walls: Vec<[f32; 2]>,
+    wall_velocities: Vec<[f32; 2]>,
+    volume: f32,
+    wall_weight: f32,
+    max_factor: f32,
+}
+
+impl Case {
+    fn of(name: &str) -> Self {
+        let mut scene = dfsph::scene::builtin(name).unwrap();
+        scene.particle_radius = 0.02;
+        let sim = dfsph::Simulation::new(&scene).unwrap();
+        let v2 = |v: &[dfsph::Vec2]| v.iter().map(|p| [p.x, p.y]).collect::<Vec<_>>();
+        let volume = sim.particle_mass() / sim.rest_density();
+        let settings = dfsph::settings::SolverSettings::from_scene(&scene);
+        let max_factor = settings.max_factor_ratio
+            * dfsph::solver::lattice_factor(sim.kernel(), sim.spacing(), volume);
+        // Walls sliding along x and y at different speeds, for the flux.
+        let walls = v2(sim.boundary_positions());
+        let wall_velocities = walls.iter().map(|p| [0.3 * p[1], -0.2 * p[0]]).collect();
+        Self {
+            fluid: v2(sim.positions()),
+            walls,
+            wall_velocities,
+            volume,
+            // The conjugate-gradient solve's mirrored walls count twice in the gradient sum.
+            wall_weight: 2.0,
+            max_factor,
+            sim,
+        }
+    }
+
+    fn input(&self) -> ParticleInput<'_> {
+        ParticleInput {
+            fluid: &self.fluid,
+            walls: &self.walls,
+            wall_volumes: self.sim.boundary_volumes(),
+            wall_velocities: &self.wall_velocities,
+            volume: self.volume,
+            support: self.sim.kernel().support(),
+            wall_weight: self.wall_weight,
+            max_factor: self.max_factor,
+        }
+    }
+}
+
+#[test]
+fn the_rate_and_push_operators_are_the_formulas() {
+    let gpu = gpu();
+    let (grid, density, ops) = (
+        GridPass::new(&gpu),
+        DensityPass::new(&gpu),
+        Operators::new(&gpu),
+    );
+    let case = Case::of("dam-break");
+    let particles = DeviceParticles::upload(&gpu, &grid, &case.input());
+    let densities = density.run(&gpu, &particles);
+    let g = densities.read(&gpu).unwrap().grad_sum;
+    let n = case.fluid.len();
+    // A velocity and a stiffness field that vary from particle to particle.
+    let vel: Vec<[f32; 2]> = (0..n)
+        .map(|i| {
+            [
+                ((i * 37) % 101) as f32 / 50.0 - 1.0,
+                ((i * 53) % 97) as f32 / 48.0 - 1.0,
+            ]
+        })
+        .collect();
+    let kappa: Vec<f32> = (0..n).map(|i| ((i * 29) % 89) as f32 * 1e-4).collect();
+    let flux = ops.wall_flux(&gpu, &particles);
+    let v_buf = gpu.upload("velocity", &vel);
+    let rate: Vec<f32> = gpu
+        .download(
+            &ops.density_rates(&gpu, &particles, &densities, &v_buf, &flux),
+            n,
+        )
+        .unwrap();
+    let k_buf = gpu.upload("kappa", &kappa);
+    let dv: Vec<[f32; 2]> = gpu
+        .download(&ops.pressure_push(&gpu, &particles, &densities, &k_buf), n)
+        .unwrap();
+    let flux: Vec<f32> = gpu.download(&flux, n).unwrap();
+    let kernel = *case.sim.kernel();
+    let (pos, wpos, wvol) = (
+        case.sim.positions(),
+        case.sim.boundary_positions(),
+        case.sim.boundary_volumes(),
+    );
+    let (mut moving_walls, mut pushed) = (0, 0);
+    for i in 0..n {
+        // The walls' flux.
+        let (mut f, mut f_scale) = (0.0f64, 0.0f64);
+        for (b, (&xb, &vb)) in wpos.iter().zip(wvol).enumerate() {
+            let gw = kernel.grad_w(pos[i] - xb);
+            let u = case.wall_velocities[b];
+            let term = (vb * case.wall_weight) as f64 * (u[0] * gw.x + u[1] * gw.y) as f64;
+            f += term;
+            f_scale += term.abs();
+        }
+        assert!(
+            (flux[i] as f64 - f).abs() <= 1e-5 * f_scale + 1e-9,
+            "flux_{i}"
+        );
+        moving_walls += (f_scale > 0.0) as usize;
+        // The rate and the push.
+        let vi = vel[i];
+        let mut r = (vi[0] * g[i][0] + vi[1] * g[i][1]) as f64 - flux[i] as f64;
+        let mut r_scale = r.abs();
+        let mut p = [-(kappa[i] * g[i][0]) as f64, -(kappa[i] * g[i][1]) as f64];
+        let mut p_scale = p[0].abs() + p[1].abs();
+        for (j, &xj) in pos.iter().enumerate() {
+            if j == i {
+                continue;
+            }
+            let gw = kernel.grad_w(pos[i] - xj) * case.volume;
+            let t = (vel[j][0] * gw.x + vel[j][1] * gw.y) as f64;
+            r -= t;
+            r_scale += t.abs();
+            p[0] -= (kappa[j] * gw.x) as f64;
+            p[1] -= (kappa[j] * gw.y) as f64;
+            p_scale += (kappa[j] * gw.length()) as f64;
+        }
+        assert!(
+            (rate[i] as f64 - r).abs() <= 1e-5 * r_scale + 1e-9,
+            "rate_{i}: {} against {r}",
+            rate[i]
+        );
+        let err = (dv[i][0] as f64 - p[0]).abs() + (dv[i][1] as f64 - p[1]).abs();
+        assert!(
+            err <= 1e-5 * p_scale + 1e-12,
+            "push_{i}: {:?} against {p:?}",
+            dv[i]
+        );
+        pushed += (p_scale > 0.0) as usize;
+    }
+    assert!(
+        moving_walls > 50 && pushed > n / 2,
+        "{moving_walls} {pushed}"
+    );
 }
 
 /// A point of f64 components (the host's sums).
@@ -167,16 +298,21 @@ fn a_lone_particle_gets_no_factor_and_a_barely_touching_pair_the_cap() {
     let h = 0.04;
     // No walls at all: the pass must also take empty wall buffers.
     let fluid = [[0.0, 0.0], [1.0, 1.0], [1.0 + 0.9 * h, 1.0]];
-    let input = DensityInput {
+    let input = ParticleInput {
         fluid: &fluid,
         walls: &[],
         wall_volumes: &[],
+        wall_velocities: &[],
         volume: 4.0e-4,
         support: h,
         wall_weight: 2.0,
         max_factor: 1.0e-3,
     };
-    let out = DensityPass::new(&gpu).run(&gpu, &input).unwrap();
+    let particles = DeviceParticles::upload(&gpu, &GridPass::new(&gpu), &input);
+    let out = DensityPass::new(&gpu)
+        .run(&gpu, &particles)
+        .read(&gpu)
+        .unwrap();
     assert_eq!(out.factor, vec![0.0, 1.0e-3, 1.0e-3], "{out:?}");
     // Alone, a particle's density is its own kernel value, V·W(0).
     let w0 = 40.0 / (7.0 * std::f32::consts::PI * h * h);

@@ -6,21 +6,6 @@
 // (`dfsph::kernel::Kernel`). Both sets are sorted into the same
 // cells (`grid_*.wgsl`), whose side is h: the 3 × 3 cells around a particle hold every
 // neighbour, visited row by row and, in a cell, by index.
-struct Params {
-    origin: vec2<f32>,
-    inv_cell: f32,
-    n: u32,
-    nx: u32,
-    ny: u32,
-    h: f32,
-    k: f32,
-    volume: f32,
-    wall_weight: f32,
-    max_factor: f32,
-    eps: f32,
-}
-
-@group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> fluid: array<vec2<f32>>;
 @group(0) @binding(2) var<storage, read> fluid_sorted: array<u32>;
 @group(0) @binding(3) var<storage, read> fluid_starts: array<u32>;
@@ -31,36 +16,6 @@ struct Params {
 // (ρ/ρ0, factor, g_i).
 @group(0) @binding(8) var<storage, read_write> out: array<vec4<f32>>;
 
-// The cubic spline W(r), 1/m² (k = 40 / (7π h²)).
-fn w(r: f32) -> f32 {
-    let q = r / params.h;
-    if q <= 0.5 {
-        let q2 = q * q;
-        return params.k * (6.0 * q2 * q - 6.0 * q2 + 1.0);
-    }
-    if q < 1.0 {
-        let a = 1.0 - q;
-        return 2.0 * params.k * a * a * a;
-    }
-    return 0.0;
-}
-
-// ∇_i W(x_i − x_j) for the offset d = x_i − x_j at distance r > 0: dW/dq / h · d / r.
-fn grad_w(d: vec2<f32>, r: f32) -> vec2<f32> {
-    let q = r / params.h;
-    if r <= 1.0e-9 || q >= 1.0 {
-        return vec2<f32>(0.0);
-    }
-    var dw = 0.0;
-    if q <= 0.5 {
-        dw = params.k * (18.0 * q * q - 12.0 * q);
-    } else {
-        let a = 1.0 - q;
-        dw = -6.0 * params.k * a * a;
-    }
-    return d * (dw / params.h / r);
-}
-
 @compute @workgroup_size(64)
 fn density_factor(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
@@ -68,17 +23,15 @@ fn density_factor(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let x = fluid[i];
-    let c = floor((x - params.origin) * params.inv_cell);
-    let cx = i32(clamp(c.x, 0.0, f32(params.nx - 1u)));
-    let cy = i32(clamp(c.y, 0.0, f32(params.ny - 1u)));
+    let cells = around(cell_of(x));
     let h2 = params.h * params.h;
     var fluid_sum = 0.0;
     var wall_sum = 0.0;
     var fluid_grad = vec2<f32>(0.0);
     var wall_grad = vec2<f32>(0.0);
     var grad_sq = 0.0;
-    for (var y = max(cy - 1, 0); y <= min(cy + 1, i32(params.ny) - 1); y++) {
-        for (var xx = max(cx - 1, 0); xx <= min(cx + 1, i32(params.nx) - 1); xx++) {
+    for (var y = cells.z; y <= cells.w; y++) {
+        for (var xx = cells.x; xx <= cells.y; xx++) {
             let cell = u32(y) * params.nx + u32(xx);
             for (var s = fluid_starts[cell]; s < fluid_starts[cell + 1u]; s++) {
                 let d = x - fluid[fluid_sorted[s]];
