@@ -3,8 +3,8 @@
 //! with the device's error.
 
 use dfsph_gpu::{
-    AdapterChoice, DensityPass, DeviceParticles, Gpu, GridLayout, GridPass, Operators,
-    ParticleInput,
+    AdapterChoice, DensityPass, DeviceParticles, Fold, Gpu, GridLayout, GridPass, Operators,
+    ParticleInput, Reductions,
 };
 
 fn gpu() -> Gpu {
@@ -317,6 +317,47 @@ fn a_lone_particle_gets_no_factor_and_a_barely_touching_pair_the_cap() {
     // Alone, a particle's density is its own kernel value, V·W(0).
     let w0 = 40.0 / (7.0 * std::f32::consts::PI * h * h);
     assert!((out.ratio[0] - 4.0e-4 * w0).abs() < 1e-6 * w0, "{out:?}");
+}
+
+#[test]
+fn reductions_fold_on_the_device_the_same_way_every_run() {
+    let gpu = gpu();
+    let reduce = Reductions::new(&gpu);
+    let one = |fold: Fold, a: &[f32], b: Option<&[f32]>| -> f32 {
+        let (a_buf, b_buf) = (gpu.upload("a", a), b.map(|b| gpu.upload("b", b)));
+        let out = reduce.fold(&gpu, fold, &a_buf, b_buf.as_ref(), a.len());
+        gpu.download::<f32>(&out, 1).unwrap()[0]
+    };
+    // Sizes around the workgroup's 256 and past one level of 256 × 256, and a million.
+    for n in [1usize, 255, 256, 257, 65_537, 1_000_003] {
+        let a: Vec<f32> = (0..n)
+            .map(|i| ((i * 7919) % 1000) as f32 / 100.0 - 4.0)
+            .collect();
+        let b: Vec<f32> = (0..n)
+            .map(|i| ((i * 104_729) % 997) as f32 / 997.0)
+            .collect();
+        let sum: f64 = a.iter().map(|&x| x as f64).sum();
+        let dot: f64 = a.iter().zip(&b).map(|(&x, &y)| x as f64 * y as f64).sum();
+        let scale: f64 = a.iter().map(|&x| x.abs() as f64).sum();
+        let max = a.iter().copied().fold(f32::MIN, f32::max);
+        let got_sum = one(Fold::Sum, &a, None);
+        assert!(
+            (got_sum as f64 - sum).abs() <= 1e-6 * scale,
+            "n = {n}: sum {got_sum} against {sum}"
+        );
+        assert_eq!(one(Fold::Max, &a, None), max, "n = {n}");
+        let got_dot = one(Fold::Dot, &a, Some(&b));
+        assert!(
+            (got_dot as f64 - dot).abs() <= 1e-6 * scale,
+            "n = {n}: dot {got_dot} against {dot}"
+        );
+        assert_eq!(
+            one(Fold::Sum, &a, None).to_bits(),
+            got_sum.to_bits(),
+            "n = {n}: another run"
+        );
+    }
+    assert_eq!(one(Fold::Sum, &[], None), 0.0);
 }
 
 #[test]
