@@ -1,14 +1,24 @@
-//! The GPU passes against the CPU, on the software Vulkan adapter (Mesa's lavapipe, which
-//! `.ci/run` installs): no test here is skipped for want of an adapter; without one they fail
-//! with the device's error.
+//! The GPU passes against the CPU, on the software Vulkan adapter (Mesa's lavapipe). Without
+//! one the tests say so and do not run, except on CI, which installs it (`.ci/run`) and where
+//! they fail with the device's error.
 
 use dfsph_gpu::{
     AdapterChoice, DensityPass, DeviceParticles, Fold, Gpu, GridLayout, GridPass, Operators,
     ParticleInput, Reductions,
 };
 
-fn gpu() -> Gpu {
-    Gpu::new(AdapterChoice::Software).unwrap_or_else(|e| panic!("{e}"))
+fn gpu() -> Option<Gpu> {
+    match Gpu::new(AdapterChoice::Software) {
+        Ok(gpu) => Some(gpu),
+        Err(e) => {
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "CI installs lavapipe (.ci/run): {e}"
+            );
+            eprintln!("{e}: the GPU passes' tests did not run");
+            None
+        }
+    }
 }
 
 /// Points scattered over 2 m × 1 m by a fixed sequence, some stacked in one cell, some
@@ -32,7 +42,7 @@ fn points(n: usize) -> Vec<[f32; 2]> {
 
 #[test]
 fn the_grid_is_a_stable_counting_sort_and_the_same_on_every_run() {
-    let gpu = gpu();
+    let Some(gpu) = gpu() else { return };
     let pass = GridPass::new(&gpu);
     let pts = points(5_003);
     // The box of the points in [0, 2] × [0, 1], cells of 0.04 m: 50 × 25.
@@ -65,7 +75,7 @@ fn the_grid_is_a_stable_counting_sort_and_the_same_on_every_run() {
 
 #[test]
 fn densities_and_factors_are_the_cpu_solvers() {
-    let gpu = gpu();
+    let Some(gpu) = gpu() else { return };
     let (grid, pass) = (GridPass::new(&gpu), DensityPass::new(&gpu));
     for name in ["dam-break", "hydrostatic"] {
         let case = Case::of(name);
@@ -184,7 +194,7 @@ impl Case {
 
 #[test]
 fn the_rate_and_push_operators_are_the_formulas() {
-    let gpu = gpu();
+    let Some(gpu) = gpu() else { return };
     let (grid, density, ops) = (
         GridPass::new(&gpu),
         DensityPass::new(&gpu),
@@ -294,7 +304,7 @@ impl std::ops::AddAssign for D2 {
 
 #[test]
 fn a_lone_particle_gets_no_factor_and_a_barely_touching_pair_the_cap() {
-    let gpu = gpu();
+    let Some(gpu) = gpu() else { return };
     let h = 0.04;
     // No walls at all: the pass must also take empty wall buffers.
     let fluid = [[0.0, 0.0], [1.0, 1.0], [1.0 + 0.9 * h, 1.0]];
@@ -321,7 +331,7 @@ fn a_lone_particle_gets_no_factor_and_a_barely_touching_pair_the_cap() {
 
 #[test]
 fn reductions_fold_on_the_device_the_same_way_every_run() {
-    let gpu = gpu();
+    let Some(gpu) = gpu() else { return };
     let reduce = Reductions::new(&gpu);
     let one = |fold: Fold, a: &[f32], b: Option<&[f32]>| -> f32 {
         let (a_buf, b_buf) = (gpu.upload("a", a), b.map(|b| gpu.upload("b", b)));
