@@ -87,11 +87,16 @@ pub(crate) fn groups(n: u32, size: u32) -> u32 {
 
 impl GridPass {
     pub fn new(gpu: &Gpu) -> Self {
+        // Each pass is the grid's prelude (`struct Grid`), then its own body.
+        let pipeline = |body: &str, entry| {
+            let source = format!("{}\n{body}", include_str!("shaders/grid_prelude.wgsl"));
+            gpu.pipeline(&source, entry)
+        };
         Self {
-            keys: gpu.pipeline(include_str!("shaders/grid_keys.wgsl"), "grid_keys"),
-            scan: gpu.pipeline(include_str!("shaders/grid_scan.wgsl"), "grid_scan"),
-            scatter: gpu.pipeline(include_str!("shaders/grid_scatter.wgsl"), "grid_scatter"),
-            cell_sort: gpu.pipeline(
+            keys: pipeline(include_str!("shaders/grid_keys.wgsl"), "grid_keys"),
+            scan: pipeline(include_str!("shaders/grid_scan.wgsl"), "grid_scan"),
+            scatter: pipeline(include_str!("shaders/grid_scatter.wgsl"), "grid_scatter"),
+            cell_sort: pipeline(
                 include_str!("shaders/grid_cell_sort.wgsl"),
                 "grid_cell_sort",
             ),

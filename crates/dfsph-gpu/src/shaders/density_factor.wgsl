@@ -23,36 +23,38 @@ fn density_factor(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let x = fluid[i];
-    let cells = around(cell_of(x));
+    let home = cell_of(x);
     let h2 = params.h * params.h;
     var fluid_sum = 0.0;
     var wall_sum = 0.0;
     var fluid_grad = vec2<f32>(0.0);
     var wall_grad = vec2<f32>(0.0);
     var grad_sq = 0.0;
-    for (var y = cells.z; y <= cells.w; y++) {
-        for (var xx = cells.x; xx <= cells.y; xx++) {
-            let cell = u32(y) * params.nx + u32(xx);
-            for (var s = fluid_starts[cell]; s < fluid_starts[cell + 1u]; s++) {
-                let d = x - fluid[fluid_sorted[s]];
-                let r2 = dot(d, d);
-                if r2 < h2 {
-                    let r = sqrt(r2);
-                    fluid_sum += w(r);
-                    let g = params.volume * grad_w(d, r);
-                    fluid_grad += g;
-                    grad_sq += dot(g, g);
-                }
+    for (var k = 0u; k < 9u; k++) {
+        let c = neighbour_cell(home, k);
+        if c < 0 {
+            continue;
+        }
+        let cell = u32(c);
+        for (var s = fluid_starts[cell]; s < fluid_starts[cell + 1u]; s++) {
+            let d = x - fluid[fluid_sorted[s]];
+            let r2 = dot(d, d);
+            if r2 < h2 {
+                let r = sqrt(r2);
+                fluid_sum += w(r);
+                let g = params.volume * grad_w(d, r);
+                fluid_grad += g;
+                grad_sq += dot(g, g);
             }
-            for (var s = wall_starts[cell]; s < wall_starts[cell + 1u]; s++) {
-                let b = wall_sorted[s];
-                let d = x - walls[b];
-                let r2 = dot(d, d);
-                if r2 < h2 {
-                    let r = sqrt(r2);
-                    wall_sum += wall_volume[b] * w(r);
-                    wall_grad += wall_volume[b] * grad_w(d, r);
-                }
+        }
+        for (var s = wall_starts[cell]; s < wall_starts[cell + 1u]; s++) {
+            let b = wall_sorted[s];
+            let d = x - walls[b];
+            let r2 = dot(d, d);
+            if r2 < h2 {
+                let r = sqrt(r2);
+                wall_sum += wall_volume[b] * w(r);
+                wall_grad += wall_volume[b] * grad_w(d, r);
             }
         }
     }

@@ -1,16 +1,5 @@
 // Each cell's points in increasing index: the order of a stable counting sort, whatever
 // order the atomics gave them (cells hold a handful of points: insertion sort).
-struct Grid {
-    origin: vec2<f32>,
-    inv_cell: f32,
-    n: u32,
-    nx: u32,
-    ny: u32,
-    cells: u32,
-    pad: u32,
-}
-
-@group(0) @binding(0) var<uniform> grid: Grid;
 @group(0) @binding(1) var<storage, read> starts: array<u32>;
 @group(0) @binding(2) var<storage, read_write> sorted: array<u32>;
 

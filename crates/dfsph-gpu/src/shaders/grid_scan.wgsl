@@ -1,17 +1,6 @@
 // Exclusive prefix sum of the cells' counts into `starts` (cells + 1 entries), by one
 // workgroup: each invocation sums a contiguous chunk, the 256 chunk sums are scanned in
 // shared memory, then each chunk is written out in order.
-struct Grid {
-    origin: vec2<f32>,
-    inv_cell: f32,
-    n: u32,
-    nx: u32,
-    ny: u32,
-    cells: u32,
-    pad: u32,
-}
-
-@group(0) @binding(0) var<uniform> grid: Grid;
 @group(0) @binding(1) var<storage, read> counts: array<u32>;
 @group(0) @binding(2) var<storage, read_write> starts: array<u32>;
 

@@ -1,15 +1,4 @@
 // Each point's index into its cell's slot, by its arrival rank.
-struct Grid {
-    origin: vec2<f32>,
-    inv_cell: f32,
-    n: u32,
-    nx: u32,
-    ny: u32,
-    cells: u32,
-    pad: u32,
-}
-
-@group(0) @binding(0) var<uniform> grid: Grid;
 @group(0) @binding(1) var<storage, read> keys: array<u32>;
 @group(0) @binding(2) var<storage, read> rank: array<u32>;
 @group(0) @binding(3) var<storage, read> starts: array<u32>;

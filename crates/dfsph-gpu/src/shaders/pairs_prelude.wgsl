@@ -57,12 +57,12 @@ fn cell_of(x: vec2<f32>) -> vec2<i32> {
     );
 }
 
-// The rows (y) and columns (x) of cells around `c`: lower and upper bounds, inclusive.
-fn around(c: vec2<i32>) -> vec4<i32> {
-    return vec4<i32>(
-        max(c.x - 1, 0),
-        min(c.x + 1, i32(params.nx) - 1),
-        max(c.y - 1, 0),
-        min(c.y + 1, i32(params.ny) - 1),
-    );
+// The k-th (0 ≤ k < 9) of the 3 × 3 cells around `home`, row by row from the lower left,
+// or −1 where it lies outside the grid.
+fn neighbour_cell(home: vec2<i32>, k: u32) -> i32 {
+    let c = home + vec2<i32>(i32(k % 3u) - 1, i32(k / 3u) - 1);
+    if c.x < 0 || c.y < 0 || c.x >= i32(params.nx) || c.y >= i32(params.ny) {
+        return -1;
+    }
+    return c.y * i32(params.nx) + c.x;
 }

@@ -15,19 +15,21 @@ fn wall_flux(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let x = fluid[i];
-    let cells = around(cell_of(x));
+    let home = cell_of(x);
     let h2 = params.h * params.h;
     var sum = 0.0;
-    for (var y = cells.z; y <= cells.w; y++) {
-        for (var xx = cells.x; xx <= cells.y; xx++) {
-            let cell = u32(y) * params.nx + u32(xx);
-            for (var s = wall_starts[cell]; s < wall_starts[cell + 1u]; s++) {
-                let b = wall_sorted[s];
-                let d = x - walls[b];
-                let r2 = dot(d, d);
-                if r2 < h2 {
-                    sum += wall_volume[b] * dot(wall_velocity[b], grad_w(d, sqrt(r2)));
-                }
+    for (var k = 0u; k < 9u; k++) {
+        let c = neighbour_cell(home, k);
+        if c < 0 {
+            continue;
+        }
+        let cell = u32(c);
+        for (var s = wall_starts[cell]; s < wall_starts[cell + 1u]; s++) {
+            let b = wall_sorted[s];
+            let d = x - walls[b];
+            let r2 = dot(d, d);
+            if r2 < h2 {
+                sum += wall_volume[b] * dot(wall_velocity[b], grad_w(d, sqrt(r2)));
             }
         }
     }
