@@ -158,6 +158,18 @@ impl Grid {
         self.forced_path = Some(path);
     }
 
+    /// What the AVX-512 kernels read of this grid, which must be dense.
+    #[cfg(target_arch = "x86_64")]
+    fn dense_shape(&self) -> avx512::DenseGrid {
+        assert!(!self.hashed, "the AVX-512 kernels take dense grids only");
+        avx512::DenseGrid {
+            origin: self.origin,
+            inv_cell: self.inv_cell,
+            dims: self.dims,
+            key_count: self.key_count,
+        }
+    }
+
     /// Whether the AVX-512 cell passes run.
     fn avx512(&self) -> bool {
         self.forced_path.unwrap_or_else(SimdPath::in_use) == SimdPath::Avx512
@@ -202,11 +214,14 @@ impl Grid {
             .zip(points.par_chunks(LIGHT_PASS_MIN_ITEMS))
             .for_each(|(k, p)| {
                 #[cfg(target_arch = "x86_64")]
-                if simd_keys {
-                    return avx512::dense_keys(self, p, k);
-                }
-                let _ = simd_keys;
-                for (k, &p) in k.iter_mut().zip(p) {
+                let done = if simd_keys {
+                    avx512::dense_keys(&self.dense_shape(), p, k)
+                } else {
+                    0
+                };
+                #[cfg(not(target_arch = "x86_64"))]
+                let (done, _) = (0, simd_keys);
+                for (k, &p) in k[done..].iter_mut().zip(&p[done..]) {
                     *k = self.point_key(p);
                 }
             });
@@ -427,7 +442,7 @@ impl Grid {
                         let c = if avx512 {
                             if k % 16 == 0 {
                                 let next = &queries[i..(i + 16).min(chunk_end)];
-                                avx512::block_cells(self, next, &mut cells);
+                                avx512::block_cells(&self.dense_shape(), next, &mut cells);
                             }
                             cells[k % 16]
                         } else {
@@ -673,7 +688,11 @@ mod tests {
         pts.extend(extremes.iter().cycle().take(21));
         // 3,021 points: 188 full vectors and a tail of 13.
         let mut simd = vec![0; pts.len()];
-        avx512::dense_keys(&grid, &pts, &mut simd);
+        let done = avx512::dense_keys(&grid.dense_shape(), &pts, &mut simd);
+        assert_eq!(done, 3_008);
+        for (k, &p) in simd[done..].iter_mut().zip(&pts[done..]) {
+            *k = grid.point_key(p);
+        }
         let scalar: Vec<u32> = pts.iter().map(|&p| grid.point_key(p)).collect();
         assert_eq!(simd, scalar);
         let cells: std::collections::HashSet<u32> = scalar.iter().copied().collect();
@@ -715,7 +734,7 @@ mod tests {
         let mut non_empty = 0;
         for group in queries.chunks(13).chain(queries.chunks(16)) {
             let mut cells = [[0i64; 2]; 16];
-            avx512::block_cells(&grid, group, &mut cells);
+            avx512::block_cells(&grid.dense_shape(), group, &mut cells);
             for (&p, &c) in group.iter().zip(&cells) {
                 let want = blocks(grid.cell_of(p));
                 assert_eq!(blocks(c), want, "{p:?}");

@@ -1,16 +1,25 @@
 //! The AVX-512F kernels of the grid: cell keys and query cells 16 points at a time, and the
 //! candidate filter by AVX-512's compress. Each kernel has a safe entry that checks what it
 //! needs (the CPU's AVX-512F, a dense grid) before it runs; the `unsafe` stays in this file,
-//! part of the SIMD seam.
+//! part of the SIMD seam. They see a grid as a [`DenseGrid`]: the grid's own type is the
+//! parent's, which calls them.
 
-use super::Grid;
 use crate::simd::avx512::{deinterleave, indices_from};
 use glam::Vec2;
 use std::arch::x86_64::*;
 
+/// What the kernels read of a dense grid (`super::Grid`, never hashed here).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct DenseGrid {
+    pub origin: Vec2,
+    pub inv_cell: f32,
+    pub dims: [i64; 2],
+    pub key_count: usize,
+}
+
 /// The cell coordinates along one axis of 16 points whose coordinates are `v`, floored
 /// but not clamped, as two vectors of 8 (lanes 0–7, then 8–15): the operations of
-/// [`Grid::cell_of`], `(v − origin)·inv` in f64 with no fused multiply-add, then
+/// [`super::Grid::cell_of`], `(v − origin)·inv` in f64 with no fused multiply-add, then
 /// floor, so every value is the one `cell_of` floors to.
 #[inline]
 #[target_feature(enable = "avx512f")]
@@ -29,17 +38,18 @@ fn floored_cells(v: __m512, origin: f32, inv: f32) -> [__m512d; 2] {
     floored
 }
 
-/// [`Grid::point_key`] of each of `points` into `keys`, 16 points per iteration,
+/// [`super::Grid::point_key`] of each of `points` into `keys`, 16 points per iteration,
 /// for a dense grid: [`floored_cells`], then the clamp to the grid in f64, where the
 /// scalar path converts to an integer first. Both give the same cell: the floored value
 /// is an integer, and a NaN clamps to 0 either way (`max` returns its second operand for
-/// a NaN, the scalar `as` gives 0). A tail of fewer than 16 points takes the scalar path.
+/// a NaN, the scalar `as` gives 0). Returns how many points it keyed: a tail of fewer
+/// than 16 is left to the scalar path.
 ///
 /// # Safety
 /// The CPU must have AVX-512F; the grid must be dense with at most `i32::MAX` cells.
 #[target_feature(enable = "avx512f")]
-unsafe fn dense_keys_unchecked(grid: &Grid, points: &[Vec2], keys: &mut [u32]) {
-    debug_assert!(!grid.hashed && grid.key_count <= i32::MAX as usize);
+unsafe fn dense_keys_unchecked(grid: &DenseGrid, points: &[Vec2], keys: &mut [u32]) -> usize {
+    debug_assert!(grid.key_count <= i32::MAX as usize);
     let n = points.len().min(keys.len());
     let xy = points.as_ptr() as *const f32;
     let zero = _mm512_setzero_pd();
@@ -64,12 +74,10 @@ unsafe fn dense_keys_unchecked(grid: &Grid, points: &[Vec2], keys: &mut [u32]) {
         }
         i += 16;
     }
-    for (k, &p) in keys[i..n].iter_mut().zip(&points[i..n]) {
-        *k = grid.point_key(p);
-    }
+    i
 }
 
-/// The cells of up to 16 `points` in a dense `grid`, for [`Grid::dense_block`]:
+/// The cells of up to 16 `points` in a dense `grid`, for [`super::Grid::dense_block`]:
 /// [`floored_cells`], with each coordinate then clamped to `-2..=dims + 1` (a cell two or
 /// more outside the grid has an empty block, as every cell further out does) and a NaN
 /// coordinate to 0, as `cell_of` gives it. So every point gets the block `cell_of` would
@@ -78,8 +86,7 @@ unsafe fn dense_keys_unchecked(grid: &Grid, points: &[Vec2], keys: &mut [u32]) {
 /// # Safety
 /// The CPU must have AVX-512F; the grid must be dense.
 #[target_feature(enable = "avx512f")]
-unsafe fn block_cells_unchecked(grid: &Grid, points: &[Vec2], cells: &mut [[i64; 2]; 16]) {
-    debug_assert!(!grid.hashed);
+unsafe fn block_cells_unchecked(grid: &DenseGrid, points: &[Vec2], cells: &mut [[i64; 2]; 16]) {
     let n = points.len().min(16);
     let xy = points.as_ptr() as *const f32;
     let lo_mask: __mmask16 = if n >= 8 {
@@ -189,13 +196,14 @@ fn cpu_has_avx512f() -> bool {
     std::arch::is_x86_feature_detected!("avx512f")
 }
 
-/// [`Grid::point_key`] of each of `points` into `keys`, by [`dense_keys_unchecked`].
+/// [`super::Grid::point_key`] of the leading points of `points` into `keys`, 16 at a time, by
+/// [`dense_keys_unchecked`]; returns how many (the caller keys the tail of fewer than 16).
 ///
 /// # Panics
-/// Where the CPU lacks AVX-512F, or the grid is hashed or has more than `i32::MAX` cells.
-pub(super) fn dense_keys(grid: &Grid, points: &[Vec2], keys: &mut [u32]) {
+/// Where the CPU lacks AVX-512F, or the grid has more than `i32::MAX` cells.
+pub(super) fn dense_keys(grid: &DenseGrid, points: &[Vec2], keys: &mut [u32]) -> usize {
     assert!(cpu_has_avx512f(), "the AVX-512 grid keys need AVX-512F");
-    assert!(!grid.hashed && grid.key_count <= i32::MAX as usize);
+    assert!(grid.key_count <= i32::MAX as usize);
     // SAFETY: both conditions were checked above.
     unsafe { dense_keys_unchecked(grid, points, keys) }
 }
@@ -203,11 +211,10 @@ pub(super) fn dense_keys(grid: &Grid, points: &[Vec2], keys: &mut [u32]) {
 /// The cells of up to 16 query `points`, by [`block_cells_unchecked`].
 ///
 /// # Panics
-/// Where the CPU lacks AVX-512F, or the grid is hashed.
-pub(super) fn block_cells(grid: &Grid, points: &[Vec2], cells: &mut [[i64; 2]; 16]) {
+/// Where the CPU lacks AVX-512F.
+pub(super) fn block_cells(grid: &DenseGrid, points: &[Vec2], cells: &mut [[i64; 2]; 16]) {
     assert!(cpu_has_avx512f(), "the AVX-512 query cells need AVX-512F");
-    assert!(!grid.hashed);
-    // SAFETY: both conditions were checked above.
+    // SAFETY: checked above; a `DenseGrid` is dense.
     unsafe { block_cells_unchecked(grid, points, cells) }
 }
 
