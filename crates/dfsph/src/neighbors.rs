@@ -210,17 +210,17 @@ impl Grid {
         let mut keys = std::mem::take(&mut self.keys);
         keys.resize(n, 0);
         let simd_keys = !self.hashed && self.avx512() && self.key_count <= i32::MAX as usize;
+        #[cfg(target_arch = "x86_64")]
+        let dense = simd_keys.then(|| self.dense_shape());
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = simd_keys;
         keys.par_chunks_mut(LIGHT_PASS_MIN_ITEMS)
             .zip(points.par_chunks(LIGHT_PASS_MIN_ITEMS))
             .for_each(|(k, p)| {
                 #[cfg(target_arch = "x86_64")]
-                let done = if simd_keys {
-                    avx512::dense_keys(&self.dense_shape(), p, k)
-                } else {
-                    0
-                };
+                let done = dense.map_or(0, |dense| avx512::dense_keys(&dense, p, k));
                 #[cfg(not(target_arch = "x86_64"))]
-                let (done, _) = (0, simd_keys);
+                let done = 0;
                 for (k, &p) in k[done..].iter_mut().zip(&p[done..]) {
                     *k = self.point_key(p);
                 }
@@ -427,6 +427,8 @@ impl Grid {
                 let mut block = [(0u32, 0u32); 3];
                 let mut block_len = 0;
                 let chunk_end = base + counts.len();
+                #[cfg(target_arch = "x86_64")]
+                let dense = avx512.then(|| self.dense_shape());
                 for (k, count) in counts.iter_mut().enumerate() {
                     let i = base + k;
                     let p = queries[i];
@@ -439,10 +441,10 @@ impl Grid {
                         }
                     } else {
                         #[cfg(target_arch = "x86_64")]
-                        let c = if avx512 {
+                        let c = if let Some(dense) = &dense {
                             if k % 16 == 0 {
                                 let next = &queries[i..(i + 16).min(chunk_end)];
-                                avx512::block_cells(&self.dense_shape(), next, &mut cells);
+                                avx512::block_cells(dense, next, &mut cells);
                             }
                             cells[k % 16]
                         } else {
