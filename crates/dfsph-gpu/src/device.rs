@@ -79,8 +79,8 @@ impl Gpu {
         )
     }
 
-    /// A storage buffer holding `data`.
-    pub(crate) fn storage<T: bytemuck::Pod>(&self, label: &str, data: &[T]) -> wgpu::Buffer {
+    /// A storage buffer holding `data` (per-particle values for the passes).
+    pub fn upload<T: bytemuck::Pod>(&self, label: &str, data: &[T]) -> wgpu::Buffer {
         use wgpu::util::DeviceExt;
         // wgpu refuses empty bindings; one zero element stands for none.
         let bytes: &[u8] = if data.is_empty() {

@@ -109,7 +109,7 @@ impl GridPass {
         let n = points.len();
         let cells = layout.cells as usize;
         let uniform = gpu.uniform("grid", &layout);
-        let positions = gpu.storage("positions", points);
+        let positions = gpu.upload("positions", points);
         let keys = gpu.zeroed::<u32>("keys", n);
         let counts = gpu.zeroed::<u32>("counts", cells);
         let rank = gpu.zeroed::<u32>("rank", n);

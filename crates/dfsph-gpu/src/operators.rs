@@ -3,7 +3,7 @@
 //! stiffness field causes (`dfsph::solver::apply_pressure`), with the walls' flux.
 
 use crate::density::DeviceDensities;
-use crate::device::{Gpu, GpuError};
+use crate::device::Gpu;
 use crate::pairs::DeviceParticles;
 
 /// The operators' pipelines.
@@ -96,21 +96,5 @@ impl Operators {
             ],
         );
         dv
-    }
-}
-
-impl Gpu {
-    /// Upload per-particle values (velocities, stiffnesses) for the operators.
-    pub fn upload<T: bytemuck::Pod>(&self, label: &str, values: &[T]) -> wgpu::Buffer {
-        self.storage(label, values)
-    }
-
-    /// Read per-particle values back.
-    pub fn download<T: bytemuck::Pod>(
-        &self,
-        buffer: &wgpu::Buffer,
-        len: usize,
-    ) -> Result<Vec<T>, GpuError> {
-        self.read(buffer, len)
     }
 }

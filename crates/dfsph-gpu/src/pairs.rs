@@ -83,8 +83,8 @@ impl DeviceParticles {
             uniform: gpu.uniform("pair parameters", &params),
             fluid,
             walls,
-            wall_volumes: gpu.storage("wall volumes", input.wall_volumes),
-            wall_velocities: gpu.storage("wall velocities", input.wall_velocities),
+            wall_volumes: gpu.upload("wall volumes", input.wall_volumes),
+            wall_velocities: gpu.upload("wall velocities", input.wall_velocities),
         }
     }
 

@@ -218,16 +218,16 @@ fn the_rate_and_push_operators_are_the_formulas() {
     let flux = ops.wall_flux(&gpu, &particles);
     let v_buf = gpu.upload("velocity", &vel);
     let rate: Vec<f32> = gpu
-        .download(
+        .read(
             &ops.density_rates(&gpu, &particles, &densities, &v_buf, &flux),
             n,
         )
         .unwrap();
     let k_buf = gpu.upload("kappa", &kappa);
     let dv: Vec<[f32; 2]> = gpu
-        .download(&ops.pressure_push(&gpu, &particles, &densities, &k_buf), n)
+        .read(&ops.pressure_push(&gpu, &particles, &densities, &k_buf), n)
         .unwrap();
-    let flux: Vec<f32> = gpu.download(&flux, n).unwrap();
+    let flux: Vec<f32> = gpu.read(&flux, n).unwrap();
     let kernel = *case.sim.kernel();
     let (pos, wpos, wvol) = (
         case.sim.positions(),
@@ -336,7 +336,7 @@ fn reductions_fold_on_the_device_the_same_way_every_run() {
     let one = |fold: Fold, a: &[f32], b: Option<&[f32]>| -> f32 {
         let (a_buf, b_buf) = (gpu.upload("a", a), b.map(|b| gpu.upload("b", b)));
         let out = reduce.fold(&gpu, fold, &a_buf, b_buf.as_ref(), a.len());
-        gpu.download::<f32>(&out, 1).unwrap()[0]
+        gpu.read::<f32>(&out, 1).unwrap()[0]
     };
     // Sizes around the workgroup's 256 and past one level of 256 × 256, and a million.
     for n in [1usize, 255, 256, 257, 65_537, 1_000_003] {
