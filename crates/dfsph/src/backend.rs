@@ -95,6 +95,10 @@ pub trait Backend: Send {
     /// How the walls take part in the pressure terms.
     fn wall_model(&self) -> &'static dyn BoundaryModel;
 
+    /// What this backend is, in words, for a HUD, a log or a recording's header: `cpu`, or
+    /// the GPU and its adapter (and, where it hands steps to the CPU, why).
+    fn describe(&self) -> String;
+
     /// Fluid particles within the kernel's support of fluid particle `i` (not counting
     /// itself) as the last step's neighbourhoods found them; `None` when `world`'s fluid has
     /// changed since (a pour).

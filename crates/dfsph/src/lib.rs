@@ -52,6 +52,7 @@ pub mod simd;
 pub mod simulation;
 pub mod solver;
 pub mod step;
+pub mod time_step;
 pub(crate) mod viscosity;
 pub mod world;
 

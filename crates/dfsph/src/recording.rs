@@ -61,6 +61,11 @@ pub struct Header {
     /// only on the same path. Absent in recordings made before it was noted.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub simd: Option<String>,
+    /// What stepped the water: `cpu`, or the GPU backend and its adapter (results are
+    /// bit-identical only on the same backend). Absent in recordings made before it was
+    /// noted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub backend: Option<String>,
     /// The scene exactly as the simulation started, every key present (for the viewer, with
     /// its pour budget in `max_particles`).
     pub scene: Scene,
@@ -75,7 +80,17 @@ impl Header {
             source: source.into(),
             threads,
             simd: Some(SimdPath::in_use().name().into()),
+            backend: None,
             scene: scene.clone(),
+        }
+    }
+
+    /// The header, naming the backend that steps the water
+    /// ([`crate::Simulation::backend_description`]).
+    pub fn on_backend(self, backend: &str) -> Self {
+        Self {
+            backend: Some(backend.to_string()),
+            ..self
         }
     }
 

@@ -37,10 +37,16 @@ pub struct Snapshot {
     pub pressure: Vec<f32>,
 }
 
+/// Makes the backend that steps a world: when a simulation is built, and again on every
+/// reset (a new world). [`Simulation::new`] takes the CPU backend's.
+pub type BackendFactory = Arc<dyn Fn(&mut World) -> Box<dyn Backend> + Send + Sync>;
+
 /// One running scene: its world and the backend that steps it.
 pub struct Simulation {
     pub(crate) world: World,
     backend: Box<dyn Backend>,
+    /// Makes the next backend on a reset; the CPU backend's when `None`.
+    factory: Option<BackendFactory>,
 }
 
 impl Deref for Simulation {
@@ -66,7 +72,33 @@ impl Simulation {
     pub fn new_within(scene: &Scene, limits: &MemoryLimits) -> Result<Self, SceneError> {
         let mut world = World::new_within(scene, limits)?;
         let backend = Box::new(CpuBackend::new(&mut world));
-        Ok(Simulation { world, backend })
+        Ok(Simulation {
+            world,
+            backend,
+            factory: None,
+        })
+    }
+
+    /// [`Self::new_within`] with the backend `factory` makes (e.g. the GPU's, from the
+    /// `dfsph-gpu` crate), now and on every reset.
+    pub fn with_backend(
+        scene: &Scene,
+        limits: &MemoryLimits,
+        factory: BackendFactory,
+    ) -> Result<Self, SceneError> {
+        let mut world = World::new_within(scene, limits)?;
+        let backend = factory(&mut world);
+        Ok(Simulation {
+            world,
+            backend,
+            factory: Some(factory),
+        })
+    }
+
+    /// What steps this simulation, in words: `cpu`, or the GPU backend and its adapter (and,
+    /// where it hands the step to the CPU, why).
+    pub fn backend_description(&self) -> String {
+        self.backend.describe()
     }
 
     /// The world this simulation steps.
@@ -100,7 +132,10 @@ impl Simulation {
                 // (Ctrl-C in `run`), as the world keeps the memory limit.
                 Action::Reset { .. } => {
                     let flag = self.backend.stop_flag();
-                    self.backend = Box::new(CpuBackend::new(&mut self.world));
+                    self.backend = match &self.factory {
+                        Some(factory) => factory(&mut self.world),
+                        None => Box::new(CpuBackend::new(&mut self.world)),
+                    };
                     if let Some(flag) = flag {
                         self.backend.set_stop_flag(flag);
                     }

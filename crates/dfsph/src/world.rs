@@ -548,6 +548,93 @@ impl World {
     }
 }
 
+/// What a backend outside this crate reads and writes (the CPU backend, inside it, reaches
+/// the fields themselves): the fluid's arrays, the walls, the tank's motion, the pointer and
+/// the clock. A backend advances the world only through these.
+impl World {
+    /// The fluid particles, to be advanced by a step (their order is the backend's: keep
+    /// every array the same length and permute them together, ids included).
+    pub fn fluid_mut(&mut self) -> &mut FluidParticles {
+        &mut self.fluid
+    }
+
+    /// The wall particles: positions, velocities, volumes Ψ_b and bodies.
+    pub fn boundary(&self) -> &BoundaryParticles {
+        &self.boundary
+    }
+
+    /// Volume of one fluid particle V = m/ρ0, m².
+    pub fn particle_volume(&self) -> f32 {
+        self.volume
+    }
+
+    /// The tank's velocity, m/s (it moves when shaken; obstacles and drawn walls move with it).
+    pub fn tank_velocity(&self) -> Vec2 {
+        self.bodies[0].velocity
+    }
+
+    /// The fastest moving wall's speed, m/s (the tank's and the rigid bodies').
+    pub fn fastest_wall_speed(&self) -> f32 {
+        self.bodies
+            .iter()
+            .map(|b| b.velocity.length())
+            .fold(0.0, f32::max)
+    }
+
+    /// Whether the user is shaking the tank (its drive is not at rest).
+    pub fn is_shaken(&self) -> bool {
+        self.shake_drive != 0.0
+    }
+
+    /// Move the tank by its shake drive over a step of `dt` (s), the walls fixed to it with
+    /// it: the first thing a step does, with the previous step's Δt.
+    pub fn drive_tank_by(&mut self, dt: f32) {
+        self.drive_tank(dt);
+    }
+
+    /// Move the tank and the walls fixed to it by their velocities over `dt` (s): what a step
+    /// does after advecting the fluid.
+    pub fn move_walls_by(&mut self, dt: f32) {
+        self.move_walls(dt);
+    }
+
+    /// When wall particles were added or removed since the last call (a drawn or erased wall,
+    /// a body), compute the volume Ψ_b of those that have none (Akinci et al. 2012, with the
+    /// CPU backend's correction γ; lattice walls come with theirs) and say so; also clear the
+    /// flag that walls moved.
+    pub fn refresh_wall_volumes(&mut self) -> bool {
+        self.walls_moved = false;
+        if !self.boundary_changed {
+            return false;
+        }
+        let mut grid = Grid::new(self.kernel.support());
+        let order = grid.build(&self.boundary.position).to_vec();
+        let gamma = boundary::wall_volume_correction(&self.kernel, self.spacing);
+        // Lattice walls come with their volumes; only the others' (zero) are computed.
+        let mut sorted: Vec<f32> = order
+            .iter()
+            .map(|&i| self.boundary.volume[i as usize])
+            .collect();
+        boundary::volumes(&grid, &self.kernel, gamma, &mut sorted);
+        for (k, &i) in order.iter().enumerate() {
+            self.boundary.volume[i as usize] = sorted[k];
+        }
+        self.boundary_changed = false;
+        true
+    }
+
+    /// Count a step of `dt` (s) on the clock.
+    pub fn advance_clock(&mut self, dt: f32) {
+        self.time += step_seconds(dt);
+        self.step_count += 1;
+    }
+
+    /// The fastest fluid particle's speed, m/s, and the fluid's kinetic energy, J/m.
+    pub fn fastest_speed_and_energy(&self) -> (f64, f64) {
+        self.speed_and_energy()
+    }
+}
+
 /// The length in seconds that a step of `dt` (single precision, as the solver takes it) stands
 /// for: the shortest decimal that reads back as `dt`. The 1 ms step is the `f32`
 /// 0.0010000000474974513; it stands for 0.001, and the clock, which sums these in double

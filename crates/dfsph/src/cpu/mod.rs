@@ -190,6 +190,10 @@ impl Backend for CpuBackend {
         self.pressure.walls()
     }
 
+    fn describe(&self) -> String {
+        "cpu".to_string()
+    }
+
     fn close_fluid_count(&self, world: &World, i: usize) -> Option<usize> {
         (self.fluid_lists.len() == world.fluid.len()).then(|| self.count_close(world, i))
     }

@@ -1,109 +1,17 @@
-//! The CPU backend's Δt: the CFL condition and the stability bounds.
-
-use crate::par::prelude::*;
-use crate::parallel::LIGHT_PASS_MIN_ITEMS;
+//! The CPU backend's Δt: the CFL condition and the stability bounds of
+//! [`crate::time_step`], with the backend's viscosity and pressure solver.
 
 use super::CpuBackend;
-use crate::displacement::step_displacement_bound;
-use crate::forces;
-use crate::world::{World, MAX_SHAKE_ACCELERATION};
+use crate::world::World;
 
 impl CpuBackend {
-    /// The pressure's bound on Δt, `pressure_wave_stability·d/√(|g|·D)`, D the fluid's extent
-    /// along gravity: the hydrostatic pressure at the bottom of the deepest water there can
-    /// be. It stays put while water rests. A bound on the solved pressure's maximum followed
-    /// its jitter of a few percent from step to step, and a column at rest under a Δt that
-    /// varies that much sloshed (the 400-layer column at 0.06 m/s, against 0.006 m/s under a
-    /// fixed Δt of the same length). Pressure peaks of impacts are brief and come with
-    /// speeds whose CFL step is shorter anyway.
-    pub(super) fn pressure_wave_time_step(&self, world: &World) -> f32 {
-        let g = world.gravity.length();
-        if g == 0.0 || world.fluid.is_empty() {
-            return f32::INFINITY;
-        }
-        let down = world.gravity / g;
-        let (lo, hi) = world
-            .fluid
-            .position
-            .par_iter()
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .map(|p| {
-                let depth = p.dot(down);
-                (depth, depth)
-            })
-            .reduce(
-                || (f32::INFINITY, f32::NEG_INFINITY),
-                |a, b| (a.0.min(b.0), a.1.max(b.1)),
-            );
-        let extent = (hi - lo).max(0.0) + world.spacing;
-        self.settings.pressure_wave_stability * world.spacing / (g * extent).sqrt()
-    }
-
-    /// CFL condition `Δt = λ·d / v_max` (v_max includes moving walls; WCSPH adds the speed of
-    /// sound), at most `√(λ·d/|g|)`, clamped to the scene's bounds; then at most the viscous
-    /// stability bound, [`Self::pressure_wave_time_step`] and [`step_displacement_bound`],
-    /// which all beat `time_step.min`.
+    /// The CFL step of `world` and its bounds ([`World::cfl_time_step`]) with this
+    /// backend's settings, viscosity and (WCSPH) speed of sound.
     pub(super) fn cfl_time_step(&self, world: &World) -> f32 {
-        let ts = &world.scene.time_step;
-        let fluid_max = world
-            .fluid
-            .velocity
-            .par_iter()
-            .with_min_len(LIGHT_PASS_MIN_ITEMS)
-            .map(|v| v.length_squared())
-            .reduce(|| 0.0, f32::max)
-            .sqrt();
-        let wall_max = world
-            .bodies
-            .iter()
-            .map(|b| b.velocity.length())
-            .fold(0.0, f32::max);
-        let mut v_max = fluid_max.max(wall_max);
-        if let Some(sound) = self.pressure.sound_speed() {
-            v_max += sound;
-        }
-        let mut dt = if v_max > 0.0 {
-            ts.cfl as f32 * world.spacing / v_max
-        } else {
-            ts.max as f32
-        };
-        // The speed gravity adds during the step, |g|·Δt, must obey the same condition:
-        // Δt ≤ λ·d / (|g|·Δt). It binds only for a still fluid under a large `max`, whose
-        // first step would otherwise drop every particle by ½·|g|·max².
-        let g = world.gravity.length();
-        if g > 0.0 {
-            dt = dt.min((ts.cfl as f32 * world.spacing / g).sqrt());
-        }
-        // The explicit viscosity is stable only below a bound (`viscosity::Laplacian`). This
-        // bound beats the scene's minimum Δt: a step below the minimum is slow, one above the
-        // bound blows up.
-        let upper = (ts.max as f32)
-            .min(self.viscosity.max_time_step(world.spacing, &self.settings))
-            .min(self.pressure_wave_time_step(world));
-        // No step may carry water through a wall: the distance a particle travels in it under
-        // the step's accelerations, |v|·Δt + ½|a|·Δt², stays within MAX_STEP_DISPLACEMENT·d
-        // ([`step_displacement_bound`]). Like the viscous bound it beats the scene's minimum
-        // (the validator refuses a `time_step.min` above it from rest; later, a fast flow can
-        // bring it lower). The speed is the fastest particle's plus the fastest wall's (they
-        // may close on each other); the acceleration is gravity's, the pointer's, and the
-        // shaken tank's.
-        let mut acceleration = g;
-        if let Some(p) = world.pointer.filter(|p| p.radius > 0.0) {
-            let strength = p.strength.abs().min(forces::MAX_POINTER_ACCELERATION);
-            acceleration += strength;
-            if p.strength < 0.0 {
-                // A pull also damps the velocity relative to the pointer (4·|v| at most).
-                acceleration += 4.0 * fluid_max;
-            }
-        }
-        if world.shake_drive != 0.0 || wall_max > 0.0 {
-            acceleration += MAX_SHAKE_ACCELERATION;
-        }
-        let bound = step_displacement_bound(
-            (fluid_max + wall_max) as f64,
-            acceleration as f64,
-            world.spacing as f64,
-        ) as f32;
-        dt.clamp((ts.min as f32).min(upper), upper).min(bound)
+        world.cfl_time_step(
+            &self.settings,
+            self.viscosity.max_time_step(world.spacing, &self.settings),
+            self.pressure.sound_speed(),
+        )
     }
 }
