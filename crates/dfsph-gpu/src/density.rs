@@ -51,7 +51,7 @@ impl DensityPass {
                 &particles.fluid.sorted,
                 &particles.fluid.starts,
                 &particles.walls.positions,
-                &particles.wall_volumes,
+                &particles.wall_data,
                 &particles.walls.sorted,
                 &particles.walls.starts,
                 &buffer,

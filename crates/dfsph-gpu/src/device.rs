@@ -15,15 +15,34 @@ pub enum AdapterChoice {
 /// Why no device was opened.
 #[derive(Debug, Error)]
 pub enum GpuError {
-    #[error(
-        "no {0} GPU adapter: wgpu found none (on Linux a software one comes with Mesa's Vulkan \
-         drivers, Debian's mesa-vulkan-drivers)"
-    )]
-    NoAdapter(&'static str),
+    #[error("no {0} GPU adapter: wgpu found {found}", found = list_or_none(.1))]
+    NoAdapter(&'static str, Vec<String>),
     #[error("the GPU adapter {adapter} refused a device: {reason}")]
     NoDevice { adapter: String, reason: String },
     #[error("a GPU buffer could not be read back: {0}")]
     Readback(String),
+}
+
+/// The adapters `instance` finds, each as `name (backend, type)`.
+fn adapters(instance: &wgpu::Instance) -> Vec<String> {
+    pollster::block_on(instance.enumerate_adapters(wgpu::Backends::PRIMARY))
+        .iter()
+        .map(|a| {
+            let info = a.get_info();
+            format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type)
+        })
+        .collect()
+}
+
+/// `only a, b`, or `none` and where a software one comes from.
+fn list_or_none(found: &[String]) -> String {
+    if found.is_empty() {
+        "none (on Linux a software one comes with Mesa's Vulkan drivers, Debian's \
+         mesa-vulkan-drivers)"
+            .into()
+    } else {
+        format!("only {}", found.join(", "))
+    }
 }
 
 /// An open device and its queue.
@@ -48,11 +67,11 @@ impl Gpu {
             compatible_surface: None,
             apply_limit_buckets: false,
         }))
-        .map_err(|_| GpuError::NoAdapter(kind))?;
+        .map_err(|_| GpuError::NoAdapter(kind, adapters(&instance)))?;
         let info = adapter.get_info();
         let is_software = info.device_type == wgpu::DeviceType::Cpu;
         if is_software != software {
-            return Err(GpuError::NoAdapter(kind));
+            return Err(GpuError::NoAdapter(kind, adapters(&instance)));
         }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("dfsph"),
@@ -69,6 +88,11 @@ impl Gpu {
             queue,
             info,
         })
+    }
+
+    /// Whether the adapter is a software one (it says nothing about speed).
+    pub fn is_software(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
     }
 
     /// The adapter's name and driver, as a recording header or a HUD would show them.
@@ -155,6 +179,51 @@ impl Gpu {
             .get_mapped_range()
             .map_err(|e| GpuError::Readback(e.to_string()))?;
         let out = bytemuck::cast_slice(&view).to_vec();
+        drop(view);
+        staging.unmap();
+        Ok(out)
+    }
+
+    /// Finish `encoder` with copies of the first `bytes` of each of `parts` into one staging
+    /// buffer, submit it, wait, and return each part's bytes (every size a multiple of 4).
+    pub(crate) fn read_many<const K: usize>(
+        &self,
+        mut encoder: wgpu::CommandEncoder,
+        parts: &[(&wgpu::Buffer, usize); K],
+    ) -> Result<[Vec<u8>; K], GpuError> {
+        let total: usize = parts.iter().map(|p| p.1).sum();
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: total.max(4) as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut offset = 0;
+        for (buffer, bytes) in parts {
+            encoder.copy_buffer_to_buffer(buffer, 0, &staging, offset as u64, *bytes as u64);
+            offset += bytes;
+        }
+        self.queue.submit([encoder.finish()]);
+        let slice = staging.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        rx.recv()
+            .map_err(|e| GpuError::Readback(e.to_string()))?
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        let view = slice
+            .get_mapped_range()
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        let mut offset = 0;
+        let out = parts.map(|(_, bytes)| {
+            let part = view[offset..offset + bytes].to_vec();
+            offset += bytes;
+            part
+        });
         drop(view);
         staging.unmap();
         Ok(out)

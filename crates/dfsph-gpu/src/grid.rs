@@ -106,50 +106,118 @@ impl GridPass {
     /// Sort `points` into `layout`'s cells on the device.
     pub fn build(&self, gpu: &Gpu, layout: GridLayout, points: &[[f32; 2]]) -> SortedGrid {
         assert_eq!(layout.n as usize, points.len(), "the layout's point count");
-        let n = points.len();
-        let cells = layout.cells as usize;
-        let uniform = gpu.uniform("grid", &layout);
         let positions = gpu.upload("positions", points);
-        let keys = gpu.zeroed::<u32>("keys", n);
-        let counts = gpu.zeroed::<u32>("counts", cells);
-        let rank = gpu.zeroed::<u32>("rank", n);
-        let starts = gpu.zeroed::<u32>("starts", cells + 1);
-        let sorted = gpu.zeroed::<u32>("sorted", n);
+        let buffers = GridBuffers::new(gpu, points.len(), layout.cells as usize);
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            let steps: [(&wgpu::ComputePipeline, Vec<&wgpu::Buffer>, u32); 4] = [
-                (
-                    &self.keys,
-                    vec![&uniform, &positions, &keys, &counts, &rank],
-                    groups(n as u32, 64),
-                ),
-                (&self.scan, vec![&uniform, &counts, &starts], 1),
-                (
-                    &self.scatter,
-                    vec![&uniform, &keys, &rank, &starts, &sorted],
-                    groups(n as u32, 64),
-                ),
-                (
-                    &self.cell_sort,
-                    vec![&uniform, &starts, &sorted],
-                    groups(cells as u32, 64),
-                ),
-            ];
-            for (pipeline, buffers, workgroups) in steps {
-                let group = gpu.bind(pipeline, &buffers);
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, &group, &[]);
-                pass.dispatch_workgroups(workgroups, 1, 1);
-            }
-        }
+        self.record(gpu, &mut encoder, &layout, &positions, &buffers);
         gpu.queue.submit([encoder.finish()]);
         SortedGrid {
             layout,
-            uniform,
+            uniform: buffers.uniform,
             positions,
+            starts: buffers.starts,
+            sorted: buffers.sorted,
+        }
+    }
+
+    /// Record the sort of the first `layout.n` points of `positions` (on the device) into
+    /// `buffers`, which must hold that many points and `layout.cells` cells. The layout is
+    /// written into `buffers.uniform` when the queue next submits.
+    pub(crate) fn record(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        layout: &GridLayout,
+        positions: &wgpu::Buffer,
+        buffers: &GridBuffers,
+    ) {
+        let (n, cells) = (layout.n, layout.cells);
+        assert!(
+            n as usize <= buffers.points && cells as usize <= buffers.cells,
+            "the grid's buffers hold the points and cells"
+        );
+        gpu.queue
+            .write_buffer(&buffers.uniform, 0, bytemuck::bytes_of(layout));
+        encoder.clear_buffer(&buffers.counts, 0, None);
+        let GridBuffers {
+            uniform,
+            keys,
+            counts,
+            rank,
             starts,
             sorted,
+            ..
+        } = buffers;
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        let steps: [(&wgpu::ComputePipeline, Vec<&wgpu::Buffer>, u32); 4] = [
+            (
+                &self.keys,
+                vec![uniform, positions, keys, counts, rank],
+                groups(n, 64),
+            ),
+            (&self.scan, vec![uniform, counts, starts], 1),
+            (
+                &self.scatter,
+                vec![uniform, keys, rank, starts, sorted],
+                groups(n, 64),
+            ),
+            (
+                &self.cell_sort,
+                vec![uniform, starts, sorted],
+                groups(cells, 64),
+            ),
+        ];
+        for (pipeline, buffers, workgroups) in steps {
+            let group = gpu.bind(pipeline, &buffers);
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(workgroups, 1, 1);
+        }
+    }
+}
+
+/// The buffers of one grid on the device, kept from build to build (grown when a build
+/// needs more).
+pub(crate) struct GridBuffers {
+    /// Points and cells the buffers hold.
+    points: usize,
+    cells: usize,
+    /// The layout (`struct Grid` of the shaders).
+    pub uniform: wgpu::Buffer,
+    keys: wgpu::Buffer,
+    counts: wgpu::Buffer,
+    rank: wgpu::Buffer,
+    /// `starts[c]..starts[c + 1]` are cell c's slots in `sorted`.
+    pub starts: wgpu::Buffer,
+    pub sorted: wgpu::Buffer,
+}
+
+impl GridBuffers {
+    pub fn new(gpu: &Gpu, points: usize, cells: usize) -> Self {
+        let uniform = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("grid"),
+            size: std::mem::size_of::<GridLayout>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Self {
+            points,
+            cells,
+            uniform,
+            keys: gpu.zeroed::<u32>("keys", points),
+            counts: gpu.zeroed::<u32>("counts", cells),
+            rank: gpu.zeroed::<u32>("rank", points),
+            starts: gpu.zeroed::<u32>("starts", cells + 1),
+            sorted: gpu.zeroed::<u32>("sorted", points),
+        }
+    }
+
+    /// Grow the buffers to hold `points` points and `cells` cells (with room to spare, so
+    /// that a growing pour does not reallocate every step).
+    pub fn reserve(&mut self, gpu: &Gpu, points: usize, cells: usize) {
+        if points > self.points || cells > self.cells {
+            let grow = |have: usize, need: usize| if need > have { need + need / 4 } else { have };
+            *self = Self::new(gpu, grow(self.points, points), grow(self.cells, cells));
         }
     }
 }

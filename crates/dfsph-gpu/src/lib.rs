@@ -10,19 +10,27 @@
 //! checked against the CPU solver's formulas on a software Vulkan device (lavapipe) by the
 //! tests in `tests/`.
 //!
-//! Not yet here: the two pressure solves, viscosity, the time step, and the backend that
-//! steps a world (`dfsph::backend::Backend`).
+//! The whole step ([`DeviceStep`]: both Jacobi solves with their stopping rules on the
+//! device, the forces, Δt, advection and containment, one submission and one read-back a
+//! step) and the backend that steps a world with it ([`GpuBackend`], which hands what the
+//! device does not do yet to the CPU backend and says so).
 
+mod backend;
+mod choice;
 mod density;
 mod device;
 mod grid;
 mod operators;
 mod pairs;
 mod reduce;
+mod step;
 
+pub use backend::GpuBackend;
+pub use choice::{backend_factory, BackendChoice};
 pub use density::{Densities, DensityPass, DeviceDensities};
 pub use device::{AdapterChoice, Gpu, GpuError};
 pub use grid::{GridLayout, GridPass, SortedGrid};
 pub use operators::Operators;
 pub use pairs::{DeviceParticles, ParticleInput};
 pub use reduce::{Fold, Reductions};
+pub use step::{Control, DeviceStep, Solve, StepConsts, StepInput, StepOutput};

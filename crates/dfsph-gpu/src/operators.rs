@@ -16,25 +16,31 @@ pub struct Operators {
 impl Operators {
     pub fn new(gpu: &Gpu) -> Self {
         Self {
-            flux: gpu.pair_pipeline(include_str!("shaders/wall_flux.wgsl"), "wall_flux"),
+            flux: gpu.pair_pipeline(
+                include_str!("shaders/neighbour_flux.wgsl"),
+                "neighbour_flux",
+            ),
             rate: gpu.pair_pipeline(include_str!("shaders/density_rate.wgsl"), "density_rate"),
             push: gpu.pair_pipeline(include_str!("shaders/pressure_push.wgsl"), "pressure_push"),
         }
     }
 
-    /// f_i = w Σ_b Ψ_b v_b·∇W_ib, the walls' share of the density rate at their velocities.
+    /// (f_i, neighbour count) per fluid particle: f_i = w Σ_b Ψ_b v_b·∇W_ib, the walls'
+    /// share of the density rate at their velocities, and the fluid (itself excluded) and
+    /// wall particles within the support.
     pub fn wall_flux(&self, gpu: &Gpu, particles: &DeviceParticles) -> wgpu::Buffer {
         let n = particles.len();
-        let flux = gpu.zeroed::<f32>("wall flux", n);
+        let flux = gpu.zeroed::<[f32; 2]>("wall flux and neighbour count", n);
         gpu.over_fluid(
             &self.flux,
             n,
             &[
                 &particles.uniform,
                 &particles.fluid.positions,
+                &particles.fluid.sorted,
+                &particles.fluid.starts,
                 &particles.walls.positions,
-                &particles.wall_volumes,
-                &particles.wall_velocities,
+                &particles.wall_data,
                 &particles.walls.sorted,
                 &particles.walls.starts,
                 &flux,
@@ -44,7 +50,7 @@ impl Operators {
     }
 
     /// r_i = v_i·g_i − V Σ_j v_j·∇W_ij − f_i for the fluid velocities `velocity` (one
-    /// `[f32; 2]` per particle) and the walls' share `flux`, 1/s.
+    /// `[f32; 2]` per particle) and the walls' share `flux` ([`Self::wall_flux`]), 1/s.
     pub fn density_rates(
         &self,
         gpu: &Gpu,

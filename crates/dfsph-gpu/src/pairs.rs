@@ -23,21 +23,57 @@ pub struct ParticleInput<'a> {
     pub max_factor: f32,
 }
 
+/// (Ψ_b, v_b, 0) per wall particle, as the shaders read the walls beside their positions.
+pub(crate) fn wall_data(volumes: &[f32], velocities: &[[f32; 2]]) -> Vec<[f32; 4]> {
+    volumes
+        .iter()
+        .zip(velocities)
+        .map(|(&psi, v)| [psi, v[0], v[1], 0.0])
+        .collect()
+}
+
 /// What every pair shader reads (`struct Params` of the prelude).
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct Params {
-    origin: [f32; 2],
-    inv_cell: f32,
+    pub origin: [f32; 2],
+    pub inv_cell: f32,
     pub n: u32,
-    nx: u32,
-    ny: u32,
-    h: f32,
-    k: f32,
-    volume: f32,
-    wall_weight: f32,
-    max_factor: f32,
-    eps: f32,
+    pub nx: u32,
+    pub ny: u32,
+    pub h: f32,
+    pub k: f32,
+    pub volume: f32,
+    pub wall_weight: f32,
+    pub max_factor: f32,
+    pub eps: f32,
+}
+
+impl Params {
+    /// The parameters of `layout`'s cells (side h), for the cubic spline of support `h`.
+    pub fn new(
+        layout: &GridLayout,
+        n: usize,
+        h: f32,
+        volume: f32,
+        wall_weight: f32,
+        max_factor: f32,
+    ) -> Self {
+        Self {
+            origin: layout.origin,
+            inv_cell: layout.inv_cell,
+            n: n as u32,
+            nx: layout.nx,
+            ny: layout.ny,
+            h,
+            k: 40.0 / (7.0 * std::f32::consts::PI * h * h),
+            volume,
+            wall_weight,
+            max_factor,
+            // The CPU's guard: a particle with (almost) no neighbours gets no pressure.
+            eps: 1.0e-6 / (h * h),
+        }
+    }
 }
 
 /// The particles on the device, sorted into cells of side h.
@@ -46,8 +82,8 @@ pub struct DeviceParticles {
     pub(crate) uniform: wgpu::Buffer,
     pub(crate) fluid: SortedGrid,
     pub(crate) walls: SortedGrid,
-    pub(crate) wall_volumes: wgpu::Buffer,
-    pub(crate) wall_velocities: wgpu::Buffer,
+    /// (Ψ_b, v_b, 0) per wall particle.
+    pub(crate) wall_data: wgpu::Buffer,
 }
 
 impl DeviceParticles {
@@ -64,27 +100,23 @@ impl DeviceParticles {
         let layout = GridLayout::covering(&all, h, 0);
         let fluid = grid.build(gpu, layout.for_points(input.fluid.len()), input.fluid);
         let walls = grid.build(gpu, layout.for_points(nw), input.walls);
-        let params = Params {
-            origin: layout.origin,
-            inv_cell: layout.inv_cell,
-            n: input.fluid.len() as u32,
-            nx: layout.nx,
-            ny: layout.ny,
+        let params = Params::new(
+            &layout,
+            input.fluid.len(),
             h,
-            k: 40.0 / (7.0 * std::f32::consts::PI * h * h),
-            volume: input.volume,
-            wall_weight: input.wall_weight,
-            max_factor: input.max_factor,
-            // The CPU's guard: a particle with (almost) no neighbours gets no pressure.
-            eps: 1.0e-6 / (h * h),
-        };
+            input.volume,
+            input.wall_weight,
+            input.max_factor,
+        );
         Self {
             params,
             uniform: gpu.uniform("pair parameters", &params),
             fluid,
             walls,
-            wall_volumes: gpu.upload("wall volumes", input.wall_volumes),
-            wall_velocities: gpu.upload("wall velocities", input.wall_velocities),
+            wall_data: gpu.upload(
+                "wall data",
+                &wall_data(input.wall_volumes, input.wall_velocities),
+            ),
         }
     }
 

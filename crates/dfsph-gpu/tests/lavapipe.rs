@@ -227,8 +227,10 @@ fn the_rate_and_push_operators_are_the_formulas() {
     let dv: Vec<[f32; 2]> = gpu
         .read(&ops.pressure_push(&gpu, &particles, &densities, &k_buf), n)
         .unwrap();
-    let flux: Vec<f32> = gpu.read(&flux, n).unwrap();
+    let flux_count: Vec<[f32; 2]> = gpu.read(&flux, n).unwrap();
+    let flux: Vec<f32> = flux_count.iter().map(|f| f[0]).collect();
     let kernel = *case.sim.kernel();
+    let h2 = kernel.support() * kernel.support();
     let (pos, wpos, wvol) = (
         case.sim.positions(),
         case.sim.boundary_positions(),
@@ -250,6 +252,14 @@ fn the_rate_and_push_operators_are_the_formulas() {
             "flux_{i}"
         );
         moving_walls += (f_scale > 0.0) as usize;
+        // The neighbour count: fluid (itself excluded) and walls within the support.
+        let close = |x: &[dfsph::Vec2]| {
+            x.iter()
+                .filter(|&&y| (pos[i] - y).length_squared() < h2)
+                .count()
+        };
+        let count = close(pos) - 1 + close(wpos);
+        assert_eq!(flux_count[i][1], count as f32, "neighbours of {i}");
         // The rate and the push.
         let vi = vel[i];
         let mut r = (vi[0] * g[i][0] + vi[1] * g[i][1]) as f64 - flux[i] as f64;

@@ -10,7 +10,8 @@
 @group(0) @binding(2) var<storage, read> fluid_sorted: array<u32>;
 @group(0) @binding(3) var<storage, read> fluid_starts: array<u32>;
 @group(0) @binding(4) var<storage, read> walls: array<vec2<f32>>;
-@group(0) @binding(5) var<storage, read> wall_volume: array<f32>;
+// (Ψ_b, v_b, 0) per wall particle.
+@group(0) @binding(5) var<storage, read> wall_data: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read> wall_sorted: array<u32>;
 @group(0) @binding(7) var<storage, read> wall_starts: array<u32>;
 // (ρ/ρ0, factor, g_i).
@@ -53,8 +54,9 @@ fn density_factor(@builtin(global_invocation_id) id: vec3<u32>) {
             let r2 = dot(d, d);
             if r2 < h2 {
                 let r = sqrt(r2);
-                wall_sum += wall_volume[b] * w(r);
-                wall_grad += wall_volume[b] * grad_w(d, r);
+                let volume = wall_data[b].x;
+                wall_sum += volume * w(r);
+                wall_grad += volume * grad_w(d, r);
             }
         }
     }

@@ -6,7 +6,8 @@
 @group(0) @binding(3) var<storage, read> fluid_starts: array<u32>;
 @group(0) @binding(4) var<storage, read> densities: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read> velocity: array<vec2<f32>>;
-@group(0) @binding(6) var<storage, read> flux: array<f32>;
+// (f_i, neighbour count): `neighbour_flux.wgsl`.
+@group(0) @binding(6) var<storage, read> flux: array<vec2<f32>>;
 @group(0) @binding(7) var<storage, read_write> rate: array<f32>;
 
 @compute @workgroup_size(64)
@@ -34,5 +35,5 @@ fn density_rate(@builtin(global_invocation_id) id: vec3<u32>) {
             }
         }
     }
-    rate[i] = dot(velocity[i], densities[i].zw) - params.volume * sum - flux[i];
+    rate[i] = dot(velocity[i], densities[i].zw) - params.volume * sum - flux[i].x;
 }

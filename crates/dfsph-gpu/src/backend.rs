@@ -1,0 +1,430 @@
+//! The GPU backend: `dfsph::backend::Backend` with the step on the device
+//! ([`DeviceStep`]). Each step uploads the world's fluid and walls, runs on the device and
+//! reads its results back into the world once, so every action, output and probe works on
+//! the world as with the CPU backend.
+//!
+//! What the device does not do yet, the CPU backend does, and [`GpuBackend::describe`]
+//! says why: the conjugate-gradient density solve (every scene's default but the built-in
+//! collapsing columns'), WCSPH, the Wendland C2 kernel and rigid bodies. A device that
+//! fails mid-run hands the world to the CPU backend the same way, never silently.
+
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use dfsph::backend::{Backend, StepStats};
+use dfsph::boundary::{AkinciWalls, BoundaryModel};
+use dfsph::cpu::CpuBackend;
+use dfsph::forces::MAX_POINTER_ACCELERATION;
+use dfsph::kernel::KernelShape;
+use dfsph::scene::{Method, PressureSolve};
+use dfsph::settings::SolverSettings;
+use dfsph::world::{step_seconds, World, MAX_SHAKE_ACCELERATION};
+use dfsph::Vec2;
+
+use crate::device::Gpu;
+use crate::step::{DeviceStep, Solve, StepConsts, StepInput};
+
+/// The most fluid particles one dispatch covers (65,535 workgroups of 64).
+const MAX_FLUID: usize = 65_535 * 64;
+
+/// Steps on the device, or, for what the device does not do yet, on the CPU.
+pub struct GpuBackend {
+    gpu: Arc<Gpu>,
+    step: DeviceStep,
+    /// The CPU backend stepping the world instead, and why.
+    cpu: Option<(CpuBackend, String)>,
+    /// A device error that made the CPU take over for good.
+    failed: Option<String>,
+    settings: SolverSettings,
+    /// Δt of the previous step, s.
+    last_dt: f32,
+    stats: StepStats,
+    totals: (u64, u64),
+    stop_flag: Option<Arc<AtomicBool>>,
+}
+
+impl GpuBackend {
+    /// The backend for `world` as it stands (a world just built from its scene), on `gpu`.
+    pub fn new(gpu: Arc<Gpu>, world: &mut World) -> Self {
+        let step = DeviceStep::new(&gpu);
+        let mut backend = Self {
+            gpu,
+            step,
+            cpu: None,
+            failed: None,
+            settings: SolverSettings::from_scene(world.scene()),
+            last_dt: world.scene().time_step.max as f32,
+            stats: StepStats::default(),
+            totals: (0, 0),
+            stop_flag: None,
+        };
+        backend.choose(world);
+        backend.stats.n_fluid = world.fluid_count();
+        backend.stats.n_boundary = world.boundary().position.len();
+        backend
+    }
+
+    /// What in `world` the device does not do yet, if anything.
+    pub fn unsupported(world: &World) -> Option<String> {
+        let solver = &world.scene().solver;
+        let reason = if solver.method != Method::Dfsph {
+            "WCSPH"
+        } else if solver.pressure_solve != PressureSolve::Jacobi {
+            "the conjugate-gradient density solve (set solver.pressure_solve to \"jacobi\")"
+        } else if solver.kernel != KernelShape::CubicSpline {
+            "the Wendland C2 kernel"
+        } else if world.rigid_body_count() > 0 {
+            "rigid bodies"
+        } else if world.fluid_count() > MAX_FLUID {
+            "more than 4,194,240 fluid particles"
+        } else {
+            return None;
+        };
+        Some(format!("the GPU backend does not do {reason} yet"))
+    }
+
+    /// Step on the device when it can take `world`, else on the CPU (a CPU backend is made
+    /// when the world first needs one, and dropped when it no longer does).
+    fn choose(&mut self, world: &mut World) {
+        let reason = self.failed.clone().or_else(|| Self::unsupported(world));
+        match (reason, &mut self.cpu) {
+            (Some(reason), Some((_, why))) => *why = reason,
+            (Some(reason), None) => {
+                let mut cpu = CpuBackend::new(world);
+                if let Some(flag) = &self.stop_flag {
+                    cpu.set_stop_flag(flag.clone());
+                }
+                self.cpu = Some((cpu, reason));
+            }
+            (None, Some((cpu, _))) => {
+                self.last_dt = cpu.stats().dt as f32;
+                self.cpu = None;
+            }
+            (None, None) => {}
+        }
+    }
+
+    /// The step's constants from `world`: forces, the bounds on Δt, the tank.
+    fn consts(&self, world: &World) -> StepConsts {
+        let scene = world.scene();
+        let (ts, viscosity, d) = (&scene.time_step, &scene.viscosity, world.spacing());
+        let h = world.kernel().support();
+        let (lo, hi) = world.tank_interior();
+        let (outer_lo, outer_hi) = world.tank_containment();
+        let pointer = world.pointer().filter(|p| p.radius > 0.0);
+        let g = world.gravity();
+        let wall_speed = world.fastest_wall_speed();
+        // The displacement bound's acceleration, as `World::cfl_time_step` sums it.
+        let mut accel = g.length();
+        if let Some(p) = pointer {
+            accel += p.strength.abs().min(MAX_POINTER_ACCELERATION);
+        }
+        if world.is_shaken() || wall_speed > 0.0 {
+            accel += MAX_SHAKE_ACCELERATION;
+        }
+        let upper = (ts.max as f32)
+            .min(world.viscous_time_step(&self.settings))
+            .min(world.pressure_wave_time_step(self.settings.pressure_wave_stability));
+        let (at, radius, strength) = pointer.map_or((Vec2::ZERO, 0.0, 0.0), |p| {
+            let s = p
+                .strength
+                .clamp(-MAX_POINTER_ACCELERATION, MAX_POINTER_ACCELERATION);
+            (p.at, p.radius, s)
+        });
+        StepConsts {
+            gravity: g.to_array(),
+            pointer_at: at.to_array(),
+            tank_lo: lo.to_array(),
+            tank_hi: hi.to_array(),
+            outer_lo: outer_lo.to_array(),
+            outer_hi: outer_hi.to_array(),
+            wall_v: world.tank_velocity().to_array(),
+            pointer_radius: radius,
+            pointer_strength: strength,
+            xsph: viscosity.xsph as f32,
+            laplace: 8.0 * viscosity.kinematic as f32,
+            friction: 8.0 * viscosity.boundary_kinematic as f32,
+            eps2: 0.01 * h * h,
+            cfl: ts.cfl as f32,
+            dt_min: ts.min as f32,
+            dt_upper: upper,
+            accel,
+            wall_speed,
+            pulls: pointer.is_some_and(|p| p.strength < 0.0) as u32,
+            reach: self.settings.max_step_displacement * d,
+            spacing: d,
+            partials: 0,
+            pad: [0; 3],
+        }
+    }
+
+    /// The two Jacobi solves' constants (`dfsph::pressure::jacobi`).
+    fn solves(&self, world: &World) -> (Option<Solve>, Solve) {
+        let s = &self.settings;
+        let warm_share = if s.warm_start {
+            s.jacobi_warm_share
+        } else {
+            0.0
+        };
+        let base = Solve {
+            min_iterations: s.density.min_iterations,
+            max_iterations: s.density.max_iterations,
+            growth: s.diverging_error_growth as f32,
+            warm_share,
+            ..Solve::default()
+        };
+        let divergence = s.divergence_solve.then_some(Solve {
+            density: 0,
+            gated: 0,
+            tolerance_pct: s.divergence.tolerance_pct as f32,
+            max_error_pct: f32::MAX,
+            min_neighbours: s.divergence_min_neighbors as f32,
+            ..base
+        });
+        let density = Solve {
+            density: 1,
+            gated: 1,
+            tolerance_pct: s.density.tolerance_pct as f32,
+            max_error_pct: s.density.max_error_pct as f32,
+            max_correction_rate: s.max_correction_speed / world.spacing(),
+            ..base
+        };
+        (divergence, density)
+    }
+
+    /// One step on the device; an error leaves `world` as it was before the upload.
+    fn step_on_device(&mut self, world: &mut World) -> Result<(), crate::GpuError> {
+        world.drive_tank_by(self.last_dt);
+        world.refresh_wall_volumes();
+        let n = world.fluid_count();
+        let consts = self.consts(world);
+        if n == 0 {
+            // Nothing to solve: the clock and the walls move on.
+            let dt = world.cfl_time_step(
+                &self.settings,
+                world.viscous_time_step(&self.settings),
+                None,
+            );
+            self.finish(world, dt, None);
+            return Ok(());
+        }
+        let kernel = *world.kernel();
+        let volume = world.particle_volume();
+        let max_factor = self.settings.max_factor_ratio
+            * dfsph::solver::lattice_factor(&kernel, world.spacing(), volume);
+        let (divergence, density) = self.solves(world);
+        let walls = world.boundary();
+        // The grid covers the tank with its walls; fluid cannot leave it.
+        let (lo, hi) = world.tank_containment();
+        let h = kernel.support();
+        let bounds = walls
+            .position
+            .iter()
+            .fold((lo - Vec2::splat(h), hi + Vec2::splat(h)), |(a, b), &p| {
+                (a.min(p), b.max(p))
+            });
+        let input = StepInput {
+            position: world.positions(),
+            velocity: world.velocities(),
+            pressure: world.pressures_over_rho0(),
+            divergence_stiffness: world.divergence_stiffnesses(),
+            walls: &walls.position,
+            wall_volumes: &walls.volume,
+            wall_velocities: &walls.velocity,
+            support: h,
+            volume,
+            max_factor,
+            bounds,
+            consts,
+            divergence,
+            density,
+            last_dt: self.last_dt,
+        };
+        let mut out = self.step.run(&self.gpu, &input)?;
+        let dt = out.control.dt;
+        let fluid = world.fluid_mut();
+        std::mem::swap(&mut fluid.position, &mut out.position);
+        std::mem::swap(&mut fluid.velocity, &mut out.velocity);
+        std::mem::swap(&mut fluid.density_ratio, &mut out.density_ratio);
+        std::mem::swap(&mut fluid.factor, &mut out.factor);
+        std::mem::swap(&mut fluid.pressure_over_rho0, &mut out.pressure);
+        std::mem::swap(
+            &mut fluid.divergence_stiffness,
+            &mut out.divergence_stiffness,
+        );
+        fluid.acceleration.resize(n, Vec2::ZERO);
+        self.finish(world, dt, Some(&out));
+        Ok(())
+    }
+
+    /// Close a step of `dt`: move the walls, advance the clock, fill the statistics.
+    fn finish(&mut self, world: &mut World, dt: f32, out: Option<&crate::step::StepOutput>) {
+        world.move_walls_by(dt);
+        world.advance_clock(dt);
+        self.last_dt = dt;
+        let (max_speed, kinetic_energy) = world.fastest_speed_and_energy();
+        let c = out.map(|o| o.control).unwrap_or_default();
+        let (clamped, non_finite) = out.map_or((0, 0), |o| (o.clamped, o.non_finite));
+        self.totals.0 += clamped as u64;
+        self.totals.1 += non_finite as u64;
+        self.stats = StepStats {
+            step: world.step_count(),
+            time: world.time(),
+            dt: step_seconds(dt),
+            n_fluid: world.fluid_count(),
+            n_boundary: world.boundary().position.len(),
+            density_iterations: c.den_iterations,
+            divergence_iterations: c.div_iterations,
+            avg_density_error_pct: c.den_avg as f64,
+            max_density_error_pct: c.den_max as f64,
+            divergence_error_pct: c.div_avg as f64,
+            max_speed,
+            kinetic_energy,
+            clamped,
+            non_finite,
+            avg_neighbors: out.map_or(0.0, |o| o.avg_neighbours),
+            retries: 0,
+        };
+    }
+}
+
+impl Backend for GpuBackend {
+    fn step(&mut self, world: &mut World) -> &StepStats {
+        self.choose(world);
+        if self.cpu.is_none() {
+            if let Err(e) = self.step_on_device(world) {
+                // The results come back only whole, so the world holds the step's start
+                // (the tank already driven): the CPU takes it from here, and says why.
+                self.failed = Some(format!("the GPU failed ({e})"));
+                self.choose(world);
+            }
+        }
+        match &mut self.cpu {
+            Some((cpu, _)) => cpu.step(world),
+            None => &self.stats,
+        }
+    }
+
+    fn scene_changed(&mut self, world: &World) {
+        self.settings = SolverSettings::from_scene(world.scene());
+        if let Some((cpu, _)) = &mut self.cpu {
+            cpu.scene_changed(world);
+        }
+    }
+
+    fn stats(&self) -> &StepStats {
+        match &self.cpu {
+            Some((cpu, _)) => cpu.stats(),
+            None => &self.stats,
+        }
+    }
+
+    fn totals(&self) -> (u64, u64) {
+        let cpu = self.cpu.as_ref().map_or((0, 0), |(c, _)| c.totals());
+        (self.totals.0 + cpu.0, self.totals.1 + cpu.1)
+    }
+
+    fn next_time_step(&self, world: &World) -> f32 {
+        match &self.cpu {
+            Some((cpu, _)) => cpu.next_time_step(world),
+            None => world.cfl_time_step(
+                &self.settings,
+                world.viscous_time_step(&self.settings),
+                None,
+            ),
+        }
+    }
+
+    fn set_stop_flag(&mut self, flag: Arc<AtomicBool>) {
+        if let Some((cpu, _)) = &mut self.cpu {
+            cpu.set_stop_flag(flag.clone());
+        }
+        self.stop_flag = Some(flag);
+    }
+
+    fn stop_flag(&self) -> Option<Arc<AtomicBool>> {
+        self.stop_flag.clone()
+    }
+
+    fn output_pressures_over_rho0(&self, world: &World) -> Vec<f32> {
+        match &self.cpu {
+            Some((cpu, _)) => cpu.output_pressures_over_rho0(world),
+            None => {
+                let p = world.pressures_over_rho0();
+                let once = shepard(world, p);
+                shepard(world, &once)
+            }
+        }
+    }
+
+    fn applied_pressure_over_rho0(&self, world: &World, i: usize) -> f32 {
+        match &self.cpu {
+            Some((cpu, _)) => cpu.applied_pressure_over_rho0(world, i),
+            None => {
+                let dt = self.stats.dt as f32;
+                let kv = if self.settings.divergence_solve && dt > 0.0 {
+                    world.divergence_stiffnesses()[i] / dt
+                } else {
+                    0.0
+                };
+                world.pressures_over_rho0()[i] + kv
+            }
+        }
+    }
+
+    fn pressure_force_scale(&self) -> f32 {
+        self.cpu
+            .as_ref()
+            .map_or(1.0, |(c, _)| c.pressure_force_scale())
+    }
+
+    fn wall_model(&self) -> &'static dyn BoundaryModel {
+        match &self.cpu {
+            Some((cpu, _)) => cpu.wall_model(),
+            None => &AkinciWalls,
+        }
+    }
+
+    fn describe(&self) -> String {
+        match &self.cpu {
+            Some((_, why)) => format!("cpu ({why}; GPU: {})", self.gpu.adapter()),
+            None => format!("gpu: {}", self.gpu.adapter()),
+        }
+    }
+
+    fn close_fluid_count(&self, world: &World, i: usize) -> Option<usize> {
+        match &self.cpu {
+            Some((cpu, _)) => cpu.close_fluid_count(world, i),
+            None => {
+                let x = world.positions();
+                let h = world.kernel().support();
+                (x.len() == self.stats.n_fluid).then(|| {
+                    x.iter()
+                        .filter(|&&y| (x[i] - y).length_squared() < h * h)
+                        .count()
+                        - 1
+                })
+            }
+        }
+    }
+}
+
+/// `Σ_j W_ij f_j / Σ_j W_ij` at every fluid particle of `world`, j over its fluid neighbours
+/// and itself: the CPU backend's smoothing of the output pressure.
+fn shepard(world: &World, f: &[f32]) -> Vec<f32> {
+    let kernel = world.kernel();
+    let mut grid = dfsph::neighbors::Grid::new(kernel.support());
+    let x = world.positions();
+    let order = grid.build(x).to_vec();
+    x.iter()
+        .map(|&p| {
+            let (mut sum, mut weight) = (0.0, 0.0);
+            grid.for_each_near(p, |j, offset| {
+                let w = kernel.w(offset.length());
+                sum += w * f[order[j as usize] as usize];
+                weight += w;
+            });
+            sum / weight
+        })
+        .collect()
+}
