@@ -85,6 +85,13 @@ pub struct BenchArgs {
     /// table and write `--json`/`--plot` from them. Comma-separated.
     #[arg(long, value_name = "FILES", value_delimiter = ',')]
     pub from_json: Vec<PathBuf>,
+
+    /// Which backend steps dfsph2d's water: `cpu`, `gpu` (a hardware adapter, else a software
+    /// one, whose times say nothing about a GPU's speed) or `auto` (a hardware adapter, else
+    /// the CPU). The benchmark's scene uses the conjugate-gradient solve, which the GPU
+    /// backend hands to the CPU; `--realtime`'s (the viewer's) runs on the GPU.
+    #[arg(long, value_name = "BACKEND", value_enum, default_value_t = crate::cli::Backend::Cpu)]
+    pub backend: crate::cli::Backend,
 }
 
 /// Simulated seconds of each `bench --realtime` case: the dam break's first surge to the far
@@ -244,7 +251,16 @@ pub fn bench(args: BenchArgs) -> Result<(), String> {
                             k + 1,
                             args.runs
                         );
-                        runs.push(run_child(&exe, code, size, settings, until, t, salva_dt)?);
+                        runs.push(run_child(
+                            &exe,
+                            code,
+                            size,
+                            settings,
+                            until,
+                            t,
+                            salva_dt,
+                            args.backend,
+                        )?);
                     }
                     rows.push(median_row(runs));
                 }
@@ -322,7 +338,9 @@ fn expected_particles(d: f64) -> usize {
     count(1.0) * count(2.0)
 }
 
-/// Run one row in a child process and parse its JSON line.
+/// Run one row in a child process and parse its JSON line (each argument is one of the
+/// row's command-line arguments).
+#[allow(clippy::too_many_arguments)]
 fn run_child(
     exe: &Path,
     code: Code,
@@ -331,9 +349,11 @@ fn run_child(
     until: f64,
     threads: Option<u32>,
     salva_dt: f64,
+    backend: crate::cli::Backend,
 ) -> Result<Row, String> {
     let mut cmd = Command::new(exe);
     cmd.args(["bench-row", "--code", code.name(), "--case", size.name()])
+        .args(["--backend", backend.name()])
         .args(["--spacing", &size.spacing().to_string()])
         .args(["--until", &until.to_string()])
         .args(["--salva-dt", &salva_dt.to_string()])

@@ -109,6 +109,13 @@ pub struct ViewArgs {
     /// (ulimit -v) are checked in any case.
     #[arg(long, value_name = "BYTES", value_parser = dfsph::memory::parse_bytes)]
     pub max_memory: Option<u64>,
+
+    /// Which backend steps the water: `cpu`; `gpu`, on a hardware adapter, else on a software
+    /// one such as Mesa's lavapipe (right, but slow), an error where there is neither; or
+    /// `auto`, the GPU on a hardware adapter, else the CPU. The GPU backend does the Jacobi
+    /// solves (the built-in collapsing columns); it hands other scenes to the CPU and says why.
+    #[arg(long, value_name = "BACKEND", value_enum, default_value_t = Backend::Cpu)]
+    pub backend: Backend,
 }
 
 #[derive(Debug, Args)]
@@ -145,6 +152,13 @@ pub struct StressArgs {
     /// (ulimit -v) are checked in any case.
     #[arg(long, value_name = "BYTES", value_parser = dfsph::memory::parse_bytes)]
     pub max_memory: Option<u64>,
+
+    /// Which backend steps the water: `cpu`; `gpu`, on a hardware adapter, else on a software
+    /// one such as Mesa's lavapipe (right, but slow), an error where there is neither; or
+    /// `auto`, the GPU on a hardware adapter, else the CPU. The GPU backend does the Jacobi
+    /// solves (the built-in collapsing columns); it hands other scenes to the CPU and says why.
+    #[arg(long, value_name = "BACKEND", value_enum, default_value_t = Backend::Cpu)]
+    pub backend: Backend,
 }
 
 #[derive(Debug, Args)]
@@ -203,6 +217,13 @@ pub struct RunArgs {
     #[arg(long, value_name = "BYTES", value_parser = dfsph::memory::parse_bytes)]
     pub max_memory: Option<u64>,
 
+    /// Which backend steps the water: `cpu`; `gpu`, on a hardware adapter, else on a software
+    /// one such as Mesa's lavapipe (right, but slow), an error where there is neither; or
+    /// `auto`, the GPU on a hardware adapter, else the CPU. The GPU backend does the Jacobi
+    /// solves (the built-in collapsing columns); it hands other scenes to the CPU and says why.
+    #[arg(long, value_name = "BACKEND", value_enum, default_value_t = Backend::Cpu)]
+    pub backend: Backend,
+
     /// Width of PNG frames in pixels.
     #[arg(long, value_name = "PIXELS", default_value_t = 800,
           value_parser = clap::value_parser!(u32).range(64..=16384))]
@@ -250,6 +271,45 @@ pub struct ValidateArgs {
     /// (ulimit -v) are checked in any case.
     #[arg(long, value_name = "BYTES", value_parser = dfsph::memory::parse_bytes)]
     pub max_memory: Option<u64>,
+
+    /// Which backend steps the water: `cpu`; `gpu`, on a hardware adapter, else on a software
+    /// one such as Mesa's lavapipe (right, but slow), an error where there is neither; or
+    /// `auto`, the GPU on a hardware adapter, else the CPU. The GPU backend does the Jacobi
+    /// solves (the built-in collapsing columns); it hands other scenes to the CPU and says why.
+    #[arg(long, value_name = "BACKEND", value_enum, default_value_t = Backend::Cpu)]
+    pub backend: Backend,
+}
+
+/// Which backend steps the water (`--backend`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
+pub enum Backend {
+    /// The CPU backend.
+    #[default]
+    Cpu,
+    /// The GPU backend: a hardware adapter, else a software one.
+    Gpu,
+    /// The GPU backend on a hardware adapter, else the CPU backend.
+    Auto,
+}
+
+impl Backend {
+    /// The GPU crate's name for the choice.
+    pub fn choice(self) -> dfsph_gpu::BackendChoice {
+        match self {
+            Backend::Cpu => dfsph_gpu::BackendChoice::Cpu,
+            Backend::Gpu => dfsph_gpu::BackendChoice::Gpu,
+            Backend::Auto => dfsph_gpu::BackendChoice::Auto,
+        }
+    }
+
+    /// How the command line writes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Backend::Cpu => "cpu",
+            Backend::Gpu => "gpu",
+            Backend::Auto => "auto",
+        }
+    }
 }
 
 /// A snapshot file format.

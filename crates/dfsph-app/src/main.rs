@@ -19,6 +19,7 @@
 //! that diverged from its recording); 130 stopped by Ctrl-C, SIGTERM or SIGHUP (files complete
 //! up to the last step).
 
+mod backends;
 mod bench;
 mod blowup;
 mod cli;
@@ -78,6 +79,7 @@ fn run_command(cli: Cli) -> Result<(), Failure> {
             save_on_exit: None,
             record: None,
             max_memory: None,
+            backend: cli::Backend::Cpu,
         }),
         Some(Command::View(args)) => view(args),
         Some(Command::Scenes) => {
@@ -128,6 +130,10 @@ fn view(args: ViewArgs) -> Result<(), Failure> {
     // its resolution.
     let fit = args.scene.is_none();
     let scene_file = args.scene.as_deref().and_then(view::scene_file_name);
+    let (backend, notes) = backends::factory(args.backend).map_err(Failure::input)?;
+    for note in notes {
+        let _ = writeln!(std::io::stderr(), "{}", terminal_safe(&note));
+    }
     view::open(
         scene,
         scene_file,
@@ -135,6 +141,7 @@ fn view(args: ViewArgs) -> Result<(), Failure> {
         args.save_on_exit,
         args.record,
         fit,
+        backend,
     )
     .map_err(Failure::runtime)
 }
@@ -198,8 +205,13 @@ fn run(args: RunArgs) -> Result<(), Failure> {
     )?;
     // Within --max-memory too: a recording's reset to another scene is checked against it.
     let limits = dfsph::memory::MemoryLimits::of_this_process(args.max_memory);
-    let mut sim = Simulation::new_within(&scene, &limits)
+    let (factory, mut notes) = backends::factory(args.backend).map_err(Failure::input)?;
+    let (mut sim, on) = backends::simulation(&scene, &limits, factory.as_ref())
         .map_err(|e| Failure::input(format!("scene `{}`: {e}", args.scene)))?;
+    notes.extend(on);
+    for note in notes {
+        let _ = writeln!(std::io::stderr(), "{}", terminal_safe(&note));
+    }
     // Ctrl-C also ends a long solve within an iteration, not only the run after its step.
     sim.set_stop_flag(interrupt::flag());
     if let Some(warning) = cut_short {
@@ -416,9 +428,15 @@ fn validate_cmd(args: ValidateArgs) -> Result<(), Failure> {
             .build_global()
             .map_err(|e| Failure::input(format!("cannot start {n} threads: {e}")))?;
     }
+    // An unavailable GPU is one line before any case runs.
+    let (_, notes) = backends::factory(args.backend).map_err(Failure::input)?;
+    for note in notes {
+        let _ = writeln!(std::io::stderr(), "{}", terminal_safe(&note));
+    }
     let settings = validate::Settings {
         quick: args.quick,
         perturb: None,
+        backend: args.backend,
     };
     for scene in validate::scenes(settings) {
         check_memory(
@@ -489,6 +507,7 @@ mod tests {
         let settings = validate::Settings {
             quick: true,
             perturb: Some(|scene| scene.gravity[1] *= 1.05),
+            ..Default::default()
         };
         let outcome = validate::run(dir.path(), settings).unwrap();
         let report = std::fs::read_to_string(&outcome.report).unwrap();

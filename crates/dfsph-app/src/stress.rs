@@ -44,10 +44,19 @@ pub fn command(args: StressArgs) -> Result<(), Failure> {
         &scene.memory_estimate_for(scene.max_particles as u64),
         args.max_memory,
     )?;
-    let sim = Simulation::new(&scene)
+    let (factory, mut notes) = crate::backends::factory(args.backend).map_err(Failure::input)?;
+    let limits = dfsph::memory::MemoryLimits::of_this_process(args.max_memory);
+    let (sim, on) = crate::backends::simulation(&scene, &limits, factory.as_ref())
         .map_err(|e| Failure::input(format!("scene `{}`: {e}", args.scene)))?;
+    notes.extend(on);
+    for note in notes {
+        eprintln!("{}", terminal_safe(&note));
+    }
     let recorder = match &args.record {
-        Some(path) => Some(open_recorder(path, &args, &scene).map_err(Failure::input)?),
+        Some(path) => Some(
+            open_recorder(path, &args, &scene, &sim.backend_description())
+                .map_err(Failure::input)?,
+        ),
         None => None,
     };
     crate::interrupt::install();
@@ -78,12 +87,13 @@ fn open_recorder(
     path: &PathBuf,
     args: &StressArgs,
     scene: &Scene,
+    backend: &str,
 ) -> Result<Recorder<BufWriter<File>>, String> {
     // A FIFO would block the open until someone reads it, /dev/null would swallow the
     // recording: only a regular file (or a new one) is written.
     dfsph_io::input::check_output_file(path, "--record")?;
     let source = format!("stress seed={} steps={}", args.seed, args.steps);
-    let header = Header::new(source, rayon::current_num_threads(), scene);
+    let header = Header::new(source, rayon::current_num_threads(), scene).on_backend(backend);
     // Opened non-blocking and checked again, in case a FIFO took the file's place meanwhile
     // (opening one for writing would wait for a reader); a regular file ignores the flag.
     let mut options = std::fs::OpenOptions::new();

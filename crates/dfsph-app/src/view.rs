@@ -7,7 +7,8 @@ use dfsph::Scene;
 
 /// Open the viewer on `scene`, read from the file `scene_file` (`None`: a built-in scene);
 /// returns when the window closes. `fit_to_machine`: the scene's particle size is fitted to
-/// this machine's speed ([`dfsph_viewer::resolution`]).
+/// this machine's speed ([`dfsph_viewer::resolution`]); `backend` makes the backend of every
+/// scene the window loads (`None`: the CPU's).
 pub fn open(
     scene: Scene,
     scene_file: Option<String>,
@@ -15,6 +16,7 @@ pub fn open(
     save_on_exit: Option<PathBuf>,
     record: Option<PathBuf>,
     fit_to_machine: bool,
+    backend: Option<dfsph::simulation::BackendFactory>,
 ) -> Result<()> {
     dfsph_viewer::run(dfsph_viewer::ViewerOptions {
         scene,
@@ -23,6 +25,7 @@ pub fn open(
         record,
         fit_to_machine,
         scene_file,
+        backend,
     })
 }
 

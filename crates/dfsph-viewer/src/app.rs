@@ -120,9 +120,10 @@ impl SessionRecorder {
         })
     }
 
-    /// Write the header, for a solver stepping on `threads` threads.
-    fn start(self, threads: usize) -> anyhow::Result<ActiveRecorder> {
-        let header = Header::new("view", threads, &self.scene);
+    /// Write the header, for a solver stepping on `threads` threads of `backend`
+    /// ([`Simulation::backend_description`]).
+    fn start(self, threads: usize, backend: &str) -> anyhow::Result<ActiveRecorder> {
+        let header = Header::new("view", threads, &self.scene).on_backend(backend);
         let recorder = Recorder::new(self.file, &header)
             .with_context(|| format!("cannot write recording `{}`", self.path.display()))?;
         Ok(ActiveRecorder {
@@ -169,6 +170,8 @@ pub struct ViewerApp {
     sim: Stepper,
     /// `max_particles` of the scene as loaded; the pour budget is derived from it.
     requested_max_particles: usize,
+    /// Makes the backend of every simulation the window loads ([`ViewerOptions::backend`]).
+    backend: Option<dfsph::simulation::BackendFactory>,
     /// The scene as loaded (from the command line, the scene list or a file): what `R`
     /// goes back to, whatever was changed since.
     loaded: Scene,
@@ -273,7 +276,7 @@ impl ViewerApp {
         ctx.set_theme(egui::Theme::Dark);
         let requested_max_particles = opts.scene.max_particles;
         let loaded = opts.scene.clone();
-        let sim = build_simulation(opts.scene, requested_max_particles)?;
+        let sim = build_simulation(opts.scene, requested_max_particles, opts.backend.as_ref())?;
         let started = Instant::now();
         let exit = opts.exit_after.map(|secs| ExitPlan {
             at: started + Duration::from_secs_f64(secs.max(0.0)),
@@ -291,6 +294,7 @@ impl ViewerApp {
             resolution_note: None,
             sim: Stepper::with_threads(sim, threads),
             requested_max_particles,
+            backend: opts.backend,
             loaded,
             opened_file: opts.scene_file,
             opener: SceneOpener::default(),
@@ -351,7 +355,7 @@ impl ViewerApp {
     /// Record the session into `recorder` (`view --record`).
     pub fn with_recorder(mut self, recorder: Option<SessionRecorder>) -> Self {
         if let Some(r) = recorder {
-            match r.start(self.sim.threads()) {
+            match r.start(self.sim.threads(), &self.sim.backend_description()) {
                 Ok(r) => {
                     self.set_status(format!("recording to {}", r.path.display()));
                     self.recorder = Some(r);
@@ -421,7 +425,7 @@ impl ViewerApp {
     /// Replace the simulation (reset, scene change, new radius), keeping the old one when
     /// the new scene is rejected.
     fn load(&mut self, ctx: &egui::Context, scene: Scene, requested_max_particles: usize) -> bool {
-        match build_simulation(scene, requested_max_particles) {
+        match build_simulation(scene, requested_max_particles, self.backend.as_ref()) {
             Ok(sim) => {
                 self.sim.replace(sim);
                 self.grab_anchor = None;
@@ -795,10 +799,23 @@ pub fn probe_reading(probe: &dfsph::scene::Probe, value: f64) -> String {
 }
 
 /// A simulation for `scene` with the viewer's pour budget: room for the scene's fluid and as
-/// much again (at least 2,000 more), within the scene's own `max_particles`.
-fn build_simulation(scene: Scene, requested_max_particles: usize) -> anyhow::Result<Simulation> {
+/// much again (at least 2,000 more), within the scene's own `max_particles`, on `backend`'s
+/// backend (the CPU's for `None`).
+fn build_simulation(
+    scene: Scene,
+    requested_max_particles: usize,
+    backend: Option<&dfsph::simulation::BackendFactory>,
+) -> anyhow::Result<Simulation> {
     let scene = budgeted_scene(scene, requested_max_particles);
-    Simulation::new(&scene).map_err(|e| anyhow!("scene `{}`: {e}", scene.name))
+    let sim = match backend {
+        Some(factory) => Simulation::with_backend(
+            &scene,
+            &dfsph::memory::MemoryLimits::of_this_process(None),
+            factory.clone(),
+        ),
+        None => Simulation::new(&scene),
+    };
+    sim.map_err(|e| anyhow!("scene `{}`: {e}", scene.name))
 }
 
 /// `scene` with the viewer's pour budget in `max_particles` (see `build_simulation`).
@@ -1189,8 +1206,10 @@ impl ViewerApp {
 
         let stats = *self.sim.stats();
         let zoom = self.camera.zoom();
+        let backend = self.sim.backend_description();
         let info = HudInfo {
             scene: &self.sim.scene().name,
+            backend: &backend,
             fps: self.fps.get(),
             steps_per_second: self.steps_per_second.get(),
             particles: self.sim.fluid_count(),

@@ -32,7 +32,7 @@ fn bits(v: &[Vec2]) -> Vec<[u32; 2]> {
 fn reset_restores_the_scene_as_loaded_not_as_changed() {
     let loaded = coarse("dam-break");
     let (ctx, mut app) = app(loaded.clone());
-    let fresh = build_simulation(loaded.clone(), loaded.max_particles).unwrap();
+    let fresh = build_simulation(loaded.clone(), loaded.max_particles, None).unwrap();
 
     // Gravity off, another radius, a drawn wall, other settings, some steps.
     app.apply(

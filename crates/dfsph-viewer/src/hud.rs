@@ -225,6 +225,8 @@ impl Rate {
 /// Everything the HUD text shows.
 pub struct HudInfo<'a> {
     pub scene: &'a str,
+    /// What steps the water (`cpu`, or the GPU and its adapter).
+    pub backend: &'a str,
     pub fps: f64,
     pub steps_per_second: f64,
     pub particles: usize,
@@ -264,6 +266,7 @@ pub fn hud(ui: &mut egui::Ui, info: &HudInfo) {
                 "{:5.1} FPS   {:6.0} steps/s",
                 info.fps, info.steps_per_second
             )));
+            ui.label(mono(format!("on {}", info.backend)));
             ui.label(mono(format!(
                 "particles {:>7} / {} budget",
                 info.particles, info.budget

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 /// What to show and how long.
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct ViewerOptions {
     /// The scene to run.
     pub scene: dfsph::Scene,
@@ -24,6 +24,9 @@ pub struct ViewerOptions {
     /// The file the scene was read from (`view FILE`): the scene list names it, as after
     /// Open, rather than the scene's own `name`. `None` for a built-in scene.
     pub scene_file: Option<String>,
+    /// Makes the backend that steps the water, for every scene the window loads (`None`:
+    /// the CPU backend; `--backend` of the command line).
+    pub backend: Option<dfsph::simulation::BackendFactory>,
 }
 
 impl ViewerOptions {
@@ -36,6 +39,7 @@ impl ViewerOptions {
             record: None,
             fit_to_machine: false,
             scene_file: None,
+            backend: None,
         }
     }
 }

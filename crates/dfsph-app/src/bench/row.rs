@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 use dfsph::neighbors::Grid;
 use dfsph::scene::{self, Method, Scene, TimeStepParams};
 use dfsph::simd::SimdPath;
-use dfsph::{Simulation, Vec2};
+use dfsph::Vec2;
 
 use super::types::{Code, Row, RowArgs, Settings};
 
@@ -53,7 +53,13 @@ pub(super) fn run_dfsph(args: &RowArgs) -> Result<Row, String> {
         Settings::Viewer => viewer_scene(args.spacing),
     };
     let setup = Instant::now();
-    let mut sim = Simulation::new(&scene).map_err(|e| format!("benchmark scene: {e}"))?;
+    let (factory, notes) = crate::backends::factory(args.backend)?;
+    for note in notes {
+        eprintln!("{note}");
+    }
+    let limits = dfsph::memory::MemoryLimits::of_this_process(None);
+    let (mut sim, _) = crate::backends::simulation(&scene, &limits, factory.as_ref())
+        .map_err(|e| format!("benchmark scene: {e}"))?;
     let setup_seconds = setup.elapsed().as_secs_f64();
     let mut progress = Progress::new(Code::Dfsph2d, &args.case, args.until);
 
@@ -78,6 +84,7 @@ pub(super) fn run_dfsph(args: &RowArgs) -> Result<Row, String> {
     let wall = (start.elapsed() - untimed).as_secs_f64();
     let n = sim.fluid_count();
     let mut row = base_row(Code::Dfsph2d, args, n, sim.boundary_positions().len());
+    row.backend = sim.backend_description();
     row.setup_seconds = setup_seconds;
     row.sim_seconds = sim.time();
     row.dt_rule = format!(
@@ -137,6 +144,7 @@ pub fn base_row(code: Code, args: &RowArgs, n: usize, n_boundary: usize) -> Row 
         leaked: 0,
         non_finite: 0,
         retries: 0,
+        backend: String::new(),
         xsph: XSPH,
         float: "f32".into(),
         cpu: cpu_model(),

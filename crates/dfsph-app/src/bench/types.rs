@@ -29,6 +29,9 @@ pub struct RowArgs {
     /// is gone before the row has asked to be killed with it.
     #[arg(long)]
     pub parent: Option<u32>,
+    /// Which backend steps the water.
+    #[arg(long, value_enum, default_value_t = crate::cli::Backend::Cpu)]
+    pub backend: crate::cli::Backend,
 }
 
 /// A code under test.
@@ -135,6 +138,10 @@ pub struct Row {
     /// it was recorded.
     #[serde(default)]
     pub retries: u64,
+    /// What stepped the water (`cpu`, or the GPU backend and its adapter); empty for salva2d
+    /// and in rows saved before it was recorded.
+    #[serde(default)]
+    pub backend: String,
     /// XSPH viscosity coefficient.
     pub xsph: f64,
     /// Float type of the solver.

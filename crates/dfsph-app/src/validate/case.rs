@@ -114,6 +114,8 @@ pub struct Settings {
     /// Applied to every scene before it runs. `None` in `dfsph2d validate`; the tests use it
     /// to break the physics on purpose and see the checks fail.
     pub perturb: Option<fn(&mut Scene)>,
+    /// The backend every case runs on (`--backend`).
+    pub backend: crate::cli::Backend,
 }
 
 /// Per-step record of one run: index 0 is the initial state.
@@ -150,7 +152,9 @@ pub fn simulate(
         perturb(&mut scene);
     }
     let scene = &scene;
-    let mut sim = Simulation::new(scene)?;
+    let (factory, _) = crate::backends::factory(settings.backend).map_err(anyhow::Error::msg)?;
+    let limits = dfsph::memory::MemoryLimits::of_this_process(None);
+    let (mut sim, _) = crate::backends::simulation(scene, &limits, factory.as_ref())?;
     let mut trace = Trace {
         t: vec![0.0],
         stats: vec![StepStats {
