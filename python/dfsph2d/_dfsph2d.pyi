@@ -37,6 +37,12 @@ class Simulation:
     needs more raises ``MemoryError`` naming the limit, before anything large is allocated;
     ``reset`` to another scene is held to the same limits.
 
+    ``backend``: what steps the water, as the command line's ``--backend``: ``"cpu"``;
+    ``"gpu"``, on a hardware GPU, else on a software one such as Mesa's lavapipe (right, but
+    slow), ``RuntimeError`` listing the adapters found where there is neither; ``"auto"``, a
+    hardware GPU, else the CPU. The GPU backend runs the Jacobi solves (the built-in collapsing
+    columns); a scene it does not do yet steps on the CPU, and :attr:`backend` says why.
+
     Particle arrays (``positions``, ``velocities``, ``densities``, ``pressures``, ``ids``)
     are fresh NumPy copies in increasing particle-id order, taken when read: the solver
     re-sorts its particles by grid cell every step, into buffers it swaps, so a view of its
@@ -51,6 +57,7 @@ class Simulation:
         *,
         threads: Optional[int] = None,
         max_memory: Optional[Union[int, str]] = None,
+        backend: str = "cpu",
     ) -> None: ...
     def step(self, n: int = 1) -> Dict[str, Any]:
         """Take ``n`` steps (each of the CFL Δt the solver chooses); returns the last step's
@@ -61,6 +68,10 @@ class Simulation:
         """Step until ``seconds`` more of simulated time have passed (the last step may end a
         little after); returns the last step's diagnostics. Ctrl-C interrupts it as it does
         :meth:`step`: within one solver iteration, at the end of the step in progress."""
+    @property
+    def backend(self) -> str:
+        """What steps the water: ``"cpu"``, or ``"gpu: "`` and the adapter, or, where the GPU
+        backend hands the scene to the CPU, ``"cpu (...)"`` saying why."""
     @property
     def time(self) -> float:
         """Simulated time, s."""

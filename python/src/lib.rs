@@ -335,17 +335,47 @@ impl PySimulation {
     }
 }
 
+/// The factory of the backend `name` names (`None`: the CPU's), the device opened once per
+/// process: `cpu`, `gpu` (a hardware adapter, else a software one) or `auto` (a hardware
+/// adapter, else the CPU), as the command line's `--backend`.
+fn backend_factory(name: &str) -> PyResult<Option<dfsph::simulation::BackendFactory>> {
+    type Opened = Result<Option<dfsph::simulation::BackendFactory>, String>;
+    static OPENED: [std::sync::OnceLock<Opened>; 3] = [
+        std::sync::OnceLock::new(),
+        std::sync::OnceLock::new(),
+        std::sync::OnceLock::new(),
+    ];
+    let choice: dfsph_gpu::BackendChoice = name
+        .parse()
+        .map_err(|e: String| PyValueError::new_err(format!("backend: {e}")))?;
+    let slot = match choice {
+        dfsph_gpu::BackendChoice::Cpu => 0,
+        dfsph_gpu::BackendChoice::Gpu => 1,
+        dfsph_gpu::BackendChoice::Auto => 2,
+    };
+    OPENED[slot]
+        .get_or_init(|| {
+            dfsph_gpu::backend_factory(choice)
+                .map(|(factory, _)| factory)
+                .map_err(|e| format!("backend {name:?}: {e}"))
+        })
+        .clone()
+        .map_err(PyRuntimeError::new_err)
+}
+
 #[pymethods]
 impl PySimulation {
     #[new]
-    #[pyo3(signature = (scene, *, threads = None, max_memory = None))]
+    #[pyo3(signature = (scene, *, threads = None, max_memory = None, backend = "cpu"))]
     fn new(
         py: Python<'_>,
         scene: &Bound<'_, PyAny>,
         threads: Option<usize>,
         max_memory: Option<&Bound<'_, PyAny>>,
+        backend: &str,
     ) -> PyResult<Self> {
         let scene = scene_from(py, scene)?;
+        let factory = backend_factory(backend)?;
         let max_memory = match max_memory {
             None => None,
             Some(v) if v.is_instance_of::<PyString>() => {
@@ -384,10 +414,14 @@ impl PySimulation {
                     })?,
             ),
         };
+        let build = || match &factory {
+            Some(factory) => Simulation::with_backend(&scene, &limits, factory.clone()),
+            None => Simulation::new_within(&scene, &limits),
+        };
         let mut sim = py
             .detach(|| match &pool {
-                Some(pool) => pool.install(|| Simulation::new_within(&scene, &limits)),
-                None => Simulation::new_within(&scene, &limits),
+                Some(pool) => pool.install(build),
+                None => build(),
             })
             .map_err(scene_error)?;
         let stop = Arc::new(AtomicBool::new(false));
@@ -419,6 +453,13 @@ impl PySimulation {
         }
         let until = self.lock(py).sim.time() + seconds;
         self.step_while(py, |sim| !sim.has_reached(until))
+    }
+
+    /// What steps the water: `cpu`, or the GPU backend and its adapter (and, where it hands
+    /// the scene to the CPU, why).
+    #[getter]
+    fn backend(&self, py: Python<'_>) -> String {
+        self.lock(py).sim.backend_description()
     }
 
     /// Simulated time, s.
