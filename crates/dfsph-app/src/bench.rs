@@ -47,7 +47,8 @@ pub struct BenchArgs {
     pub threads: Vec<u32>,
 
     /// Resolutions, comma-separated: 5k (d = 0.02 m, 1 s), 20k (d = 0.01 m, 0.5 s), 80k
-    /// (d = 0.005 m, 1 s), 320k (d = 0.0025 m, 0.1 s). Default: 5k,20k,80k.
+    /// (d = 0.005 m, 1 s), 320k (d = 0.0025 m, 0.1 s), 1m (1.28 million, d = 0.00125 m,
+    /// 0.02 s). Default: 5k,20k,80k.
     #[arg(long, value_name = "SIZES", value_delimiter = ',')]
     pub sizes: Vec<Size>,
 
@@ -114,6 +115,9 @@ pub enum Size {
     K80,
     #[value(name = "320k")]
     K320,
+    /// 1.28 million particles (`scripts/gpu-bench.sh`, for the GPU backend).
+    #[value(name = "1m")]
+    M1,
 }
 
 impl Size {
@@ -124,6 +128,7 @@ impl Size {
             Size::K20 => "20k",
             Size::K80 => "80k",
             Size::K320 => "320k",
+            Size::M1 => "1m",
         }
     }
 
@@ -135,11 +140,12 @@ impl Size {
             Size::K20 => 0.01,
             Size::K80 => 0.005,
             Size::K320 => 0.0025,
+            Size::M1 => 0.00125,
         }
     }
 
     /// Standard simulated interval, s (docs/BENCHMARK.md: 1 s at 80k, 0.5 s at 20k; 320k is cut
-    /// to 0.1 s so that it finishes in minutes).
+    /// to 0.1 s and 1m to 0.02 s so that they finish in minutes).
     fn interval(self) -> f64 {
         match self {
             Size::Quick => 0.1,
@@ -147,6 +153,7 @@ impl Size {
             Size::K20 => 0.5,
             Size::K80 => 1.0,
             Size::K320 => 0.1,
+            Size::M1 => 0.02,
         }
     }
 
@@ -424,6 +431,10 @@ pub fn table(rows: &[Row]) -> String {
         };
         if r.settings == Settings::Viewer {
             runs.push_str(" (viewer settings)");
+        }
+        // The CPU is the default and says nothing; anything else is named.
+        if !r.backend.is_empty() && r.backend != "cpu" {
+            runs.push_str(&format!(" (on {})", r.backend));
         }
         let _ = writeln!(
             s,
