@@ -16,6 +16,7 @@ use dfsph::boundary::{AkinciWalls, BoundaryModel};
 use dfsph::cpu::CpuBackend;
 use dfsph::forces::MAX_POINTER_ACCELERATION;
 use dfsph::kernel::KernelShape;
+use dfsph::retry::{max_displacement, AttemptCheck, Attempts};
 use dfsph::scene::{Method, PressureSolve};
 use dfsph::settings::SolverSettings;
 use dfsph::world::{step_seconds, World, MAX_SHAKE_ACCELERATION};
@@ -38,6 +39,9 @@ pub struct GpuBackend {
     settings: SolverSettings,
     /// Δt of the previous step, s.
     last_dt: f32,
+    /// Upper bound on Δt after a step had to be redone, growing back by
+    /// `retry_limit_growth` a step (the CPU backend's rule; infinite otherwise).
+    retry_dt_limit: f32,
     stats: StepStats,
     totals: (u64, u64),
     stop_flag: Option<Arc<AtomicBool>>,
@@ -54,6 +58,7 @@ impl GpuBackend {
             failed: None,
             settings: SolverSettings::from_scene(world.scene()),
             last_dt: world.scene().time_step.max as f32,
+            retry_dt_limit: f32::INFINITY,
             stats: StepStats::default(),
             totals: (0, 0),
             stop_flag: None,
@@ -154,7 +159,8 @@ impl GpuBackend {
             reach: self.settings.max_step_displacement * d,
             spacing: d,
             partials: 0,
-            pad: [0; 3],
+            dt_cap: self.retry_dt_limit,
+            pad: [0; 2],
         }
     }
 
@@ -223,24 +229,63 @@ impl GpuBackend {
             .fold((lo - Vec2::splat(h), hi + Vec2::splat(h)), |(a, b), &p| {
                 (a.min(p), b.max(p))
             });
-        let input = StepInput {
-            position: world.positions(),
-            velocity: world.velocities(),
-            pressure: world.pressures_over_rho0(),
-            divergence_stiffness: world.divergence_stiffnesses(),
-            walls: &walls.position,
-            wall_volumes: &walls.volume,
-            wall_velocities: &walls.velocity,
-            support: h,
-            volume,
-            max_factor,
-            bounds,
-            consts,
-            divergence,
-            density,
-            last_dt: self.last_dt,
+        let run = |step: &mut DeviceStep, consts| {
+            let input = StepInput {
+                position: world.positions(),
+                velocity: world.velocities(),
+                pressure: world.pressures_over_rho0(),
+                divergence_stiffness: world.divergence_stiffnesses(),
+                walls: &walls.position,
+                wall_volumes: &walls.volume,
+                wall_velocities: &walls.velocity,
+                support: h,
+                volume,
+                max_factor,
+                bounds,
+                consts,
+                divergence,
+                density,
+                last_dt: self.last_dt,
+            };
+            step.run(&self.gpu, &input)
         };
-        let mut out = self.step.run(&self.gpu, &input)?;
+        // An unsound attempt is redone from the step's start with a shorter Δt, by the CPU
+        // backend's rules (`dfsph::retry`), but for the compression the solve did not
+        // foresee, which the device does not measure.
+        let mut out = run(&mut self.step, consts)?;
+        let first = out.control;
+        let (settings, spacing) = (&self.settings, world.spacing());
+        let mut attempts = Attempts::new(first.dt, world.scene().time_step.min as f32);
+        loop {
+            let c = out.control;
+            let check = AttemptCheck {
+                overcompressed: c.den_iterations >= settings.density.max_iterations
+                    && c.den_max as f64 > settings.retry_density_error_pct,
+                unseen_pct: 0.0,
+                displacement: max_displacement(&out.velocity, c.dt, spacing),
+            };
+            if attempts.is_last() || !attempts.redo(&check, settings) {
+                break;
+            }
+            out = run(
+                &mut self.step,
+                StepConsts {
+                    dt_cap: attempts.dt,
+                    ..consts
+                },
+            )?;
+        }
+        // After a retry the next steps may grow by `retry_limit_growth` a step until the
+        // bounds take over again.
+        let growth = self.settings.retry_limit_growth;
+        self.retry_dt_limit = if attempts.retries > 0 {
+            out.control.dt
+        } else if self.retry_dt_limit * growth >= first.cfl_dt {
+            f32::INFINITY
+        } else {
+            self.retry_dt_limit * growth
+        };
+        out.retries = attempts.retries;
         let dt = out.control.dt;
         let fluid = world.fluid_mut();
         std::mem::swap(&mut fluid.position, &mut out.position);
@@ -283,7 +328,7 @@ impl GpuBackend {
             clamped,
             non_finite,
             avg_neighbors: out.map_or(0.0, |o| o.avg_neighbours),
-            retries: 0,
+            retries: out.map_or(0, |o| o.retries),
         };
     }
 }

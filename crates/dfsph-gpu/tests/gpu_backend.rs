@@ -140,6 +140,31 @@ fn the_dam_break_runs_as_on_the_cpu() {
 }
 
 #[test]
+fn an_oversized_time_step_is_redone_on_the_device_not_taken() {
+    // The CPU backend's own test (tests/physics.rs) on the device: with a 20 ms cap the
+    // first steps of a dam break ask the density solve for more than it can give in 100
+    // iterations; the step must be redone with a smaller Δt, not taken broken.
+    let Some(gpu) = gpu() else { return };
+    let mut scene = dfsph::scene::builtin("dam-break").unwrap();
+    scene.particle_radius = 0.025;
+    scene.time_step.max = 0.02;
+    scene.time_step.cfl = 1.0;
+    let mut sim = on_gpu(&gpu, &scene);
+    let mut retried = 0;
+    while sim.time() < 0.5 {
+        let st = *sim.step();
+        retried += st.retries;
+        assert!(st.dt <= 0.02);
+        assert_eq!((st.clamped, st.non_finite), (0, 0), "at t = {}", st.time);
+        if st.retries > 0 {
+            assert!(st.dt < 0.02, "{st:?}");
+        }
+    }
+    assert!(retried > 0, "no step was redone");
+    assert!(sim.backend_description().starts_with("gpu: "));
+}
+
+#[test]
 fn two_runs_on_the_device_are_bit_identical() {
     let Some(gpu) = gpu() else { return };
     let run = || {

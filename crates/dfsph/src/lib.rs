@@ -43,7 +43,7 @@ pub mod pressure;
 pub mod probes;
 pub mod recording;
 pub(crate) mod reduce;
-pub(crate) mod retry;
+pub mod retry;
 pub mod rigid;
 pub mod saved;
 pub mod scene;

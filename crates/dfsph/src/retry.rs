@@ -1,7 +1,7 @@
 //! Retries of unsound steps: a step whose density solve left it unsound is redone from the
 //! divergence-free velocities with half the Δt, a few times at most, and when every attempt is
 //! unsound the least bad is taken. (Not in the paper; the safeguards are those of
-//! [`SolverSettings`].)
+//! [`SolverSettings`].) Every backend redoes its steps by these rules.
 
 use crate::par::prelude::*;
 use crate::parallel::LIGHT_PASS_MIN_ITEMS;
@@ -15,7 +15,7 @@ use crate::step::StepContext;
 
 /// The attempt a step takes.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct DensityStep {
+pub struct DensityStep {
     /// Its Δt, s.
     pub dt: f32,
     /// The density solve's report.
@@ -26,7 +26,7 @@ pub(crate) struct DensityStep {
 
 /// What the checks of one attempt found.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct AttemptCheck {
+pub struct AttemptCheck {
     /// The solve reached its iteration cap with a particle compressed by more than
     /// [`SolverSettings::retry_density_error_pct`]. A solve that is merely slow to converge (a
     /// deep column building up its pressure) is not unsound: a smaller Δt cannot help it, since
@@ -44,7 +44,7 @@ pub(crate) struct AttemptCheck {
 impl AttemptCheck {
     /// Check the attempt whose density solve `pressure` reported `report` and left its
     /// velocities in `fluid`.
-    pub fn of(
+    pub(crate) fn of(
         step: &StepContext,
         report: &SolveReport,
         pressure: &dyn PressureSolver,
@@ -66,7 +66,7 @@ impl AttemptCheck {
 
 /// The attempts at one step, and the rule that decides whether to redo it.
 #[derive(Clone, Debug)]
-pub(crate) struct Attempts {
+pub struct Attempts {
     /// Δt of the current attempt, s.
     pub dt: f32,
     /// How often the step was redone so far.
@@ -149,7 +149,7 @@ impl Attempts {
 /// particle spacings `spacing` (infinite for a non-finite velocity). CFL keeps a normal step
 /// at a fraction of a spacing; more than [`SolverSettings::max_step_displacement`] means the
 /// pressure solve produced a kick the step size cannot carry.
-fn max_displacement(velocity: &[Vec2], dt: f32, spacing: f32) -> f32 {
+pub fn max_displacement(velocity: &[Vec2], dt: f32, spacing: f32) -> f32 {
     let max2 = velocity
         .par_iter()
         .with_min_len(LIGHT_PASS_MIN_ITEMS)

@@ -25,7 +25,7 @@ struct Control {
     den_iterations: u32,
     den_avg: f32,
     den_max: f32,
-    // The CFL step before the bounds that are not the flow's, s.
+    // The step the CFL condition and every bound give, before `dt_cap`, s.
     cfl_dt: f32,
 }
 
@@ -103,7 +103,9 @@ struct StepConsts {
     spacing: f32,
     // Workgroups of the speed pass (256 particles each).
     partials: u32,
+    // The longest step allowed after the bounds, s: a retry's shorter Δt, or the limit
+    // a recent retry left (infinite otherwise).
+    dt_cap: f32,
     pad0: u32,
     pad1: u32,
-    pad2: u32,
 }

@@ -2,7 +2,8 @@
 // condition λ·d/v_max over the fluid (after the divergence solve) and the walls, at most
 // √(λ·d/|g|), clamped to the scene's bounds and the host's upper bound (the viscosity's
 // and the deep water's), then at most the step that keeps every particle's travel,
-// |v|·Δt + ½|a|·Δt², within `reach` (`dfsph::displacement::step_displacement_bound`).
+// |v|·Δt + ½|a|·Δt², within `reach` (`dfsph::displacement::step_displacement_bound`);
+// then at most `dt_cap` (a retry's).
 @group(0) @binding(0) var<uniform> consts: StepConsts;
 @group(0) @binding(1) var<storage, read> partials: array<vec2<f32>>;
 @group(0) @binding(2) var<storage, read_write> control: Control;
@@ -37,7 +38,6 @@ fn time_step(@builtin(local_invocation_id) lid: vec3<u32>) {
     if g > 0.0 {
         dt = min(dt, sqrt(consts.cfl * consts.spacing / g));
     }
-    control.cfl_dt = dt;
     dt = clamp(dt, min(consts.dt_min, consts.dt_upper), consts.dt_upper);
     var accel = consts.accel;
     if consts.pulls == 1u {
@@ -48,5 +48,6 @@ fn time_step(@builtin(local_invocation_id) lid: vec3<u32>) {
     if denominator > 0.0 {
         dt = min(dt, 2.0 * consts.reach / denominator);
     }
-    control.dt = dt;
+    control.cfl_dt = dt;
+    control.dt = min(dt, consts.dt_cap);
 }

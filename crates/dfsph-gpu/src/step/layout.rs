@@ -79,7 +79,8 @@ pub struct StepConsts {
     pub reach: f32,
     pub spacing: f32,
     pub partials: u32,
-    pub pad: [u32; 3],
+    pub dt_cap: f32,
+    pub pad: [u32; 2],
 }
 
 #[cfg(test)]

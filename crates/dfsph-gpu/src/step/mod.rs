@@ -67,6 +67,8 @@ pub struct StepOutput {
     /// Particles put back into the tank, and non-finite particles reset.
     pub clamped: u32,
     pub non_finite: u32,
+    /// How often the step was redone with a shorter Δt (set by the backend).
+    pub retries: u32,
 }
 
 /// The step's pipelines, and its buffers, kept from step to step.
@@ -470,6 +472,7 @@ impl DeviceStep {
             control: bytemuck::pod_read_unaligned(&control),
             clamped: counts[0],
             non_finite: counts[1],
+            retries: 0,
         })
     }
 
