@@ -9,7 +9,8 @@
 @group(0) @binding(4) var<storage, read> fluid_sorted: array<u32>;
 @group(0) @binding(5) var<storage, read> fluid_starts: array<u32>;
 @group(0) @binding(6) var<storage, read> densities: array<vec4<f32>>;
-@group(0) @binding(7) var<storage, read> increment: array<f32>;
+// The increments Δκ.
+@group(0) @binding(7) var<storage, read> kappa: array<f32>;
 @group(0) @binding(8) var<storage, read_write> velocity: array<vec2<f32>>;
 @group(0) @binding(9) var<storage, read_write> jac: array<vec4<f32>>;
 
@@ -26,26 +27,8 @@ fn jacobi_apply(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         sign = -1.0;
     }
-    let x = fluid[i];
-    let home = cell_of(x);
-    let h2 = params.h * params.h;
-    var sum = vec2<f32>(0.0);
-    for (var k = 0u; k < 9u; k++) {
-        let c = neighbour_cell(home, k);
-        if c < 0 {
-            continue;
-        }
-        let cell = u32(c);
-        for (var s = fluid_starts[cell]; s < fluid_starts[cell + 1u]; s++) {
-            let j = fluid_sorted[s];
-            let d = x - fluid[j];
-            let r2 = dot(d, d);
-            if r2 < h2 && j != i {
-                sum += increment[j] * grad_w(d, sqrt(r2));
-            }
-        }
-    }
-    let own = increment[i];
+    let sum = kappa_sum(i, fluid[i]);
+    let own = kappa[i];
     velocity[i] += sign * (-own * densities[i].zw - params.volume * sum);
     jac[i].z += sign * own;
 }

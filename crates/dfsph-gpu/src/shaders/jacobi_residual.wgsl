@@ -26,25 +26,7 @@ fn jacobi_residual(
     let t = lid.x;
     var e = 0.0;
     if i < params.n {
-        let x = fluid[i];
-        let home = cell_of(x);
-        let h2 = params.h * params.h;
-        var sum = 0.0;
-        for (var k = 0u; k < 9u; k++) {
-            let c = neighbour_cell(home, k);
-            if c < 0 {
-                continue;
-            }
-            let cell = u32(c);
-            for (var s = fluid_starts[cell]; s < fluid_starts[cell + 1u]; s++) {
-                let j = fluid_sorted[s];
-                let d = x - fluid[j];
-                let r2 = dot(d, d);
-                if r2 < h2 && j != i {
-                    sum += dot(velocity[j], grad_w(d, sqrt(r2)));
-                }
-            }
-        }
+        let sum = velocity_sum(i, fluid[i]);
         let dens = densities[i];
         let rate = dot(velocity[i], dens.zw) - params.volume * sum;
         var scale = 1.0;

@@ -1,6 +1,6 @@
 // The velocity change a stiffness field κ gives each fluid particle:
 // Δv_i = −κ_i g_i − V Σ_j κ_j ∇W_ij (TVCG 2017, eq. 9 and 12 in volumes, the walls' share in
-// g_i: `dfsph::solver::apply_pressure`).
+// g_i: `dfsph::solver::apply_pressure`); the sum is `push_sum.wgsl`'s.
 @group(0) @binding(1) var<storage, read> fluid: array<vec2<f32>>;
 @group(0) @binding(2) var<storage, read> fluid_sorted: array<u32>;
 @group(0) @binding(3) var<storage, read> fluid_starts: array<u32>;
@@ -14,24 +14,6 @@ fn pressure_push(@builtin(global_invocation_id) id: vec3<u32>) {
     if i >= params.n {
         return;
     }
-    let x = fluid[i];
-    let home = cell_of(x);
-    let h2 = params.h * params.h;
-    var sum = vec2<f32>(0.0);
-    for (var k = 0u; k < 9u; k++) {
-        let c = neighbour_cell(home, k);
-        if c < 0 {
-            continue;
-        }
-        let cell = u32(c);
-        for (var s = fluid_starts[cell]; s < fluid_starts[cell + 1u]; s++) {
-            let j = fluid_sorted[s];
-            let d = x - fluid[j];
-            let r2 = dot(d, d);
-            if r2 < h2 && j != i {
-                sum += kappa[j] * grad_w(d, sqrt(r2));
-            }
-        }
-    }
+    let sum = kappa_sum(i, fluid[i]);
     dv[i] = -kappa[i] * densities[i].zw - params.volume * sum;
 }

@@ -1,0 +1,24 @@
+// Σ_j v_j·∇W_ij over fluid particle i's neighbours j ≠ i (at x, in the 3 × 3 cells around
+// it): the fluid's share of i's density rate (TVCG 2017, eq. 7, in volumes, times V). The
+// shader that includes it declares `fluid`, `fluid_sorted`, `fluid_starts` and `velocity`.
+fn velocity_sum(i: u32, x: vec2<f32>) -> f32 {
+    let home = cell_of(x);
+    let h2 = params.h * params.h;
+    var sum = 0.0;
+    for (var k = 0u; k < 9u; k++) {
+        let c = neighbour_cell(home, k);
+        if c < 0 {
+            continue;
+        }
+        let cell = u32(c);
+        for (var s = fluid_starts[cell]; s < fluid_starts[cell + 1u]; s++) {
+            let j = fluid_sorted[s];
+            let d = x - fluid[j];
+            let r2 = dot(d, d);
+            if r2 < h2 && j != i {
+                sum += dot(velocity[j], grad_w(d, sqrt(r2)));
+            }
+        }
+    }
+    return sum;
+}
