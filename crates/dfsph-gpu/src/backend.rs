@@ -73,19 +73,19 @@ impl GpuBackend {
     pub fn unsupported(world: &World) -> Option<String> {
         let solver = &world.scene().solver;
         let reason = if solver.method != Method::Dfsph {
-            "WCSPH"
+            "no WCSPH on the GPU yet"
         } else if solver.pressure_solve != PressureSolve::Jacobi {
-            "the conjugate-gradient density solve (set solver.pressure_solve to \"jacobi\")"
+            "no conjugate-gradient solve on the GPU yet"
         } else if solver.kernel != KernelShape::CubicSpline {
-            "the Wendland C2 kernel"
+            "no Wendland C2 kernel on the GPU yet"
         } else if world.rigid_body_count() > 0 {
-            "rigid bodies"
+            "no rigid bodies on the GPU yet"
         } else if world.fluid_count() > MAX_FLUID {
-            "more than 4,194,240 fluid particles"
+            "more than 4,194,240 fluid particles for one GPU dispatch"
         } else {
             return None;
         };
-        Some(format!("the GPU backend does not do {reason} yet"))
+        Some(reason.to_string())
     }
 
     /// Step on the device when it can take `world`, else on the CPU (a CPU backend is made
@@ -432,7 +432,7 @@ impl Backend for GpuBackend {
 
     fn describe(&self) -> String {
         match &self.cpu {
-            Some((_, why)) => format!("cpu ({why}; GPU: {})", self.gpu.adapter()),
+            Some((_, why)) => format!("cpu ({why})"),
             None => format!("gpu: {}", self.gpu.adapter()),
         }
     }

@@ -97,10 +97,7 @@ impl Gpu {
 
     /// The adapter's name and driver, as a recording header or a HUD would show them.
     pub fn adapter(&self) -> String {
-        format!(
-            "{} ({:?}, {})",
-            self.info.name, self.info.backend, self.info.driver
-        )
+        format!("{}, {:?}", self.info.name, self.info.backend)
     }
 
     /// A storage buffer holding `data` (per-particle values for the passes).

@@ -334,7 +334,7 @@ fn actions_work_on_the_gpu_backend_and_what_it_cannot_do_goes_to_the_cpu_with_a_
     );
     let said = deep.backend_description();
     assert!(
-        said.starts_with("cpu (the GPU backend does not do the conjugate-gradient"),
+        said.starts_with("cpu (no conjugate-gradient solve on the GPU yet)"),
         "{said}"
     );
     deep.step();
