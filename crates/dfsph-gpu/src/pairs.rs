@@ -132,9 +132,19 @@ impl DeviceParticles {
 }
 
 impl Gpu {
-    /// A pair shader's pipeline: the prelude, then `body`.
+    /// A pair shader's pipeline: the prelude, `body`, and the cell walks `body` calls
+    /// (`fluid_slots`, `wall_slots`; each reads the starts its shader declares).
     pub(crate) fn pair_pipeline(&self, body: &str, entry: &str) -> wgpu::ComputePipeline {
-        let source = format!("{}\n{body}", include_str!("shaders/pairs_prelude.wgsl"));
+        let mut source = format!("{}\n{body}", include_str!("shaders/pairs_prelude.wgsl"));
+        for (call, walk) in [
+            ("fluid_slots(", include_str!("shaders/fluid_slots.wgsl")),
+            ("wall_slots(", include_str!("shaders/wall_slots.wgsl")),
+        ] {
+            if body.contains(call) {
+                source.push('\n');
+                source.push_str(walk);
+            }
+        }
         self.pipeline(&source, entry)
     }
 

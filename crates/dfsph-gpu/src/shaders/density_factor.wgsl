@@ -32,12 +32,8 @@ fn density_factor(@builtin(global_invocation_id) id: vec3<u32>) {
     var wall_grad = vec2<f32>(0.0);
     var grad_sq = 0.0;
     for (var k = 0u; k < 9u; k++) {
-        let c = neighbour_cell(home, k);
-        if c < 0 {
-            continue;
-        }
-        let cell = u32(c);
-        for (var s = fluid_starts[cell]; s < fluid_starts[cell + 1u]; s++) {
+        let fluid_range = fluid_slots(home, k);
+        for (var s = fluid_range.x; s < fluid_range.y; s++) {
             let d = x - fluid[fluid_sorted[s]];
             let r2 = dot(d, d);
             if r2 < h2 {
@@ -48,7 +44,8 @@ fn density_factor(@builtin(global_invocation_id) id: vec3<u32>) {
                 grad_sq += dot(g, g);
             }
         }
-        for (var s = wall_starts[cell]; s < wall_starts[cell + 1u]; s++) {
+        let wall_range = wall_slots(home, k);
+        for (var s = wall_range.x; s < wall_range.y; s++) {
             let b = wall_sorted[s];
             let d = x - walls[b];
             let r2 = dot(d, d);

@@ -26,12 +26,8 @@ fn forces(@builtin(global_invocation_id) id: vec3<u32>) {
         var xsph_sum = vec2<f32>(0.0);
         var laplace_sum = vec2<f32>(0.0);
         for (var k = 0u; k < 9u; k++) {
-            let c = neighbour_cell(home, k);
-            if c < 0 {
-                continue;
-            }
-            let cell = u32(c);
-            for (var s = fluid_starts[cell]; s < fluid_starts[cell + 1u]; s++) {
+            let fluid_range = fluid_slots(home, k);
+            for (var s = fluid_range.x; s < fluid_range.y; s++) {
                 let j = fluid_sorted[s];
                 let d = x - fluid[j];
                 let r2 = dot(d, d);

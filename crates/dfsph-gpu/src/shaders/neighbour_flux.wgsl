@@ -25,19 +25,16 @@ fn neighbour_flux(@builtin(global_invocation_id) id: vec3<u32>) {
     var sum = 0.0;
     var count = 0u;
     for (var k = 0u; k < 9u; k++) {
-        let c = neighbour_cell(home, k);
-        if c < 0 {
-            continue;
-        }
-        let cell = u32(c);
-        for (var s = fluid_starts[cell]; s < fluid_starts[cell + 1u]; s++) {
+        let fluid_range = fluid_slots(home, k);
+        for (var s = fluid_range.x; s < fluid_range.y; s++) {
             let j = fluid_sorted[s];
             let d = x - fluid[j];
             if dot(d, d) < h2 && j != i {
                 count += 1u;
             }
         }
-        for (var s = wall_starts[cell]; s < wall_starts[cell + 1u]; s++) {
+        let wall_range = wall_slots(home, k);
+        for (var s = wall_range.x; s < wall_range.y; s++) {
             let b = wall_sorted[s];
             let d = x - walls[b];
             let r2 = dot(d, d);

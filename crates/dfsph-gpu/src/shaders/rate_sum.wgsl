@@ -6,12 +6,8 @@ fn velocity_sum(i: u32, x: vec2<f32>) -> f32 {
     let h2 = params.h * params.h;
     var sum = 0.0;
     for (var k = 0u; k < 9u; k++) {
-        let c = neighbour_cell(home, k);
-        if c < 0 {
-            continue;
-        }
-        let cell = u32(c);
-        for (var s = fluid_starts[cell]; s < fluid_starts[cell + 1u]; s++) {
+        let fluid_range = fluid_slots(home, k);
+        for (var s = fluid_range.x; s < fluid_range.y; s++) {
             let j = fluid_sorted[s];
             let d = x - fluid[j];
             let r2 = dot(d, d);

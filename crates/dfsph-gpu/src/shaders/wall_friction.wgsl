@@ -23,12 +23,8 @@ fn wall_friction(@builtin(global_invocation_id) id: vec3<u32>) {
     let h2 = params.h * params.h;
     var laplace = vec2<f32>(0.0);
     for (var k = 0u; k < 9u; k++) {
-        let c = neighbour_cell(home, k);
-        if c < 0 {
-            continue;
-        }
-        let cell = u32(c);
-        for (var s = wall_starts[cell]; s < wall_starts[cell + 1u]; s++) {
+        let wall_range = wall_slots(home, k);
+        for (var s = wall_range.x; s < wall_range.y; s++) {
             let b = wall_sorted[s];
             let d = x - walls[b];
             let r2 = dot(d, d);
