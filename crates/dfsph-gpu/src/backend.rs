@@ -198,7 +198,8 @@ impl GpuBackend {
         (divergence, density)
     }
 
-    /// One step on the device; an error leaves `world` as it was before the upload.
+    /// One step on the device; an error leaves the fluid as the step found it (the tank
+    /// already driven).
     fn step_on_device(&mut self, world: &mut World) -> Result<(), crate::GpuError> {
         world.drive_tank_by(self.last_dt);
         world.refresh_wall_volumes();
