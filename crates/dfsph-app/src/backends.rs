@@ -8,8 +8,6 @@ use dfsph::memory::MemoryLimits;
 use dfsph::simulation::BackendFactory;
 use dfsph::{Scene, Simulation};
 
-use crate::cli::Backend;
-
 /// What [`factory`] found for each choice: a device is opened once per process.
 type Opened = Result<(Option<BackendFactory>, Option<String>), String>;
 static OPENED: [OnceLock<Opened>; 3] = [OnceLock::new(), OnceLock::new(), OnceLock::new()];
@@ -39,4 +37,36 @@ pub fn simulation(
     let sim = Simulation::with_backend(scene, limits, factory.clone())?;
     let note = format!("note: the water steps on the {}", sim.backend_description());
     Ok((sim, Some(note)))
+}
+
+/// Which backend steps the water (`--backend`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Backend {
+    /// The CPU backend.
+    #[default]
+    Cpu,
+    /// The GPU backend: a hardware adapter, else a software one.
+    Gpu,
+    /// The GPU backend on a hardware adapter, else the CPU backend.
+    Auto,
+}
+
+impl Backend {
+    /// The GPU crate's name for the choice.
+    pub fn choice(self) -> dfsph_gpu::BackendChoice {
+        match self {
+            Backend::Cpu => dfsph_gpu::BackendChoice::Cpu,
+            Backend::Gpu => dfsph_gpu::BackendChoice::Gpu,
+            Backend::Auto => dfsph_gpu::BackendChoice::Auto,
+        }
+    }
+
+    /// How the command line writes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Backend::Cpu => "cpu",
+            Backend::Gpu => "gpu",
+            Backend::Auto => "auto",
+        }
+    }
 }

@@ -91,8 +91,8 @@ pub struct BenchArgs {
     /// one, whose times say nothing about a GPU's speed) or `auto` (a hardware adapter, else
     /// the CPU). The benchmark's scene uses the conjugate-gradient solve, which the GPU
     /// backend hands to the CPU; `--realtime`'s (the viewer's) runs on the GPU.
-    #[arg(long, value_name = "BACKEND", value_enum, default_value_t = crate::cli::Backend::Cpu)]
-    pub backend: crate::cli::Backend,
+    #[arg(long, value_name = "BACKEND", value_enum, default_value_t = crate::backends::Backend::Cpu)]
+    pub backend: crate::backends::Backend,
 }
 
 /// Simulated seconds of each `bench --realtime` case: the dam break's first surge to the far
@@ -356,7 +356,7 @@ fn run_child(
     until: f64,
     threads: Option<u32>,
     salva_dt: f64,
-    backend: crate::cli::Backend,
+    backend: crate::backends::Backend,
 ) -> Result<Row, String> {
     let mut cmd = Command::new(exe);
     cmd.args(["bench-row", "--code", code.name(), "--case", size.name()])

@@ -6,6 +6,8 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use crate::backends::Backend;
+
 /// dfsph2d: an interactive 2D water simulator (Divergence-Free SPH) and a headless runner.
 ///
 /// Without a subcommand, opens the viewer on the dam break.
@@ -278,38 +280,6 @@ pub struct ValidateArgs {
     /// solves (the built-in collapsing columns); it hands other scenes to the CPU and says why.
     #[arg(long, value_name = "BACKEND", value_enum, default_value_t = Backend::Cpu)]
     pub backend: Backend,
-}
-
-/// Which backend steps the water (`--backend`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
-pub enum Backend {
-    /// The CPU backend.
-    #[default]
-    Cpu,
-    /// The GPU backend: a hardware adapter, else a software one.
-    Gpu,
-    /// The GPU backend on a hardware adapter, else the CPU backend.
-    Auto,
-}
-
-impl Backend {
-    /// The GPU crate's name for the choice.
-    pub fn choice(self) -> dfsph_gpu::BackendChoice {
-        match self {
-            Backend::Cpu => dfsph_gpu::BackendChoice::Cpu,
-            Backend::Gpu => dfsph_gpu::BackendChoice::Gpu,
-            Backend::Auto => dfsph_gpu::BackendChoice::Auto,
-        }
-    }
-
-    /// How the command line writes it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Backend::Cpu => "cpu",
-            Backend::Gpu => "gpu",
-            Backend::Auto => "auto",
-        }
-    }
 }
 
 /// A snapshot file format.

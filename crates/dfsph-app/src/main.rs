@@ -79,7 +79,7 @@ fn run_command(cli: Cli) -> Result<(), Failure> {
             save_on_exit: None,
             record: None,
             max_memory: None,
-            backend: cli::Backend::Cpu,
+            backend: backends::Backend::Cpu,
         }),
         Some(Command::View(args)) => view(args),
         Some(Command::Scenes) => {

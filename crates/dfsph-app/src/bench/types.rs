@@ -30,8 +30,8 @@ pub struct RowArgs {
     #[arg(long)]
     pub parent: Option<u32>,
     /// Which backend steps the water.
-    #[arg(long, value_enum, default_value_t = crate::cli::Backend::Cpu)]
-    pub backend: crate::cli::Backend,
+    #[arg(long, value_enum, default_value_t = crate::backends::Backend::Cpu)]
+    pub backend: crate::backends::Backend,
 }
 
 /// A code under test.

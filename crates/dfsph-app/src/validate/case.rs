@@ -115,7 +115,7 @@ pub struct Settings {
     /// to break the physics on purpose and see the checks fail.
     pub perturb: Option<fn(&mut Scene)>,
     /// The backend every case runs on (`--backend`).
-    pub backend: crate::cli::Backend,
+    pub backend: crate::backends::Backend,
 }
 
 /// Per-step record of one run: index 0 is the initial state.

@@ -64,7 +64,7 @@ pub fn render(settings: Settings, reports: &[CaseReport], wall_s: f64) -> String
          {} checks, **{} passed, {failed} failed**; overall: **{}**. Wall time {:.0} s.\n",
         if settings.quick { " --quick" } else { "" },
         match settings.backend {
-            crate::cli::Backend::Cpu => String::new(),
+            crate::backends::Backend::Cpu => String::new(),
             other => format!(" --backend {}", other.name()),
         },
         env!("CARGO_PKG_VERSION"),
