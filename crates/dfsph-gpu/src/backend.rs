@@ -251,8 +251,7 @@ impl GpuBackend {
             step.run(&self.gpu, &input)
         };
         // An unsound attempt is redone from the step's start with a shorter Δt, by the CPU
-        // backend's rules (`dfsph::retry`), but for the compression the solve did not
-        // foresee, which the device does not measure.
+        // backend's rules (`dfsph::retry`).
         let mut out = run(&mut self.step, consts)?;
         let first = out.control;
         let (settings, spacing) = (&self.settings, world.spacing());
@@ -262,7 +261,7 @@ impl GpuBackend {
             let check = AttemptCheck {
                 overcompressed: c.den_iterations >= settings.density.max_iterations
                     && c.den_max as f64 > settings.retry_density_error_pct,
-                unseen_pct: 0.0,
+                unseen_pct: 100.0 * c.unseen as f64,
                 displacement: max_displacement(&out.velocity, c.dt, spacing),
             };
             if attempts.is_last() || !attempts.redo(&check, settings) {

@@ -27,6 +27,12 @@ struct Control {
     den_max: f32,
     // The step the CFL condition and every bound give, before `dt_cap`, s.
     cfl_dt: f32,
+    // The largest compression the step carries beyond the density solve's prediction
+    // (relative to ρ0; `unseen_*.wgsl`).
+    unseen: f32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 // One Jacobi solve's constants (TVCG 2017, Algorithm 2 or 3; `dfsph::pressure::jacobi`).

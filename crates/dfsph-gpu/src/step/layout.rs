@@ -22,6 +22,8 @@ pub struct Control {
     pub den_avg: f32,
     pub den_max: f32,
     pub cfl_dt: f32,
+    pub unseen: f32,
+    pub pad: [u32; 3],
 }
 
 /// One Jacobi solve's constants (`struct Solve`).
@@ -90,7 +92,7 @@ mod tests {
     /// The sizes the shaders' uniform rules give (multiples of 16 bytes).
     #[test]
     fn the_blocks_have_the_shaders_sizes() {
-        assert_eq!(std::mem::size_of::<Control>(), 64);
+        assert_eq!(std::mem::size_of::<Control>(), 80);
         assert_eq!(std::mem::size_of::<Solve>(), 64);
         assert_eq!(std::mem::size_of::<Slot>(), 16);
         assert_eq!(std::mem::size_of::<StepConsts>(), 128);

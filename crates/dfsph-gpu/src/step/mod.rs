@@ -87,6 +87,9 @@ pub struct DeviceStep {
     forces: wgpu::ComputePipeline,
     friction: wgpu::ComputePipeline,
     predict: wgpu::ComputePipeline,
+    unseen_fluid: wgpu::ComputePipeline,
+    unseen_walls: wgpu::ComputePipeline,
+    unseen_fold: wgpu::ComputePipeline,
     advect: wgpu::ComputePipeline,
     buffers: Option<Buffers>,
 }
@@ -254,6 +257,9 @@ impl DeviceStep {
                 "wall_friction",
             ),
             predict: pair(include_str!("../shaders/predict.wgsl"), "predict"),
+            unseen_fluid: pair(include_str!("../shaders/unseen_fluid.wgsl"), "unseen_fluid"),
+            unseen_walls: pair(include_str!("../shaders/unseen_walls.wgsl"), "unseen_walls"),
+            unseen_fold: alone(include_str!("../shaders/unseen_fold.wgsl"), "unseen_fold"),
             advect: pair(include_str!("../shaders/advect.wgsl"), "advect"),
             buffers: None,
         }
@@ -435,6 +441,53 @@ impl DeviceStep {
         }
         // Algorithm 3: the density solve.
         self.record_solve(gpu, &mut encoder, b, 1, &density, &b.pressure);
+        // What the step would compress beyond the solve's prediction (the retries' check;
+        // the accelerations are spent, their buffer holds the fluid's part).
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            dispatch(
+                gpu,
+                &mut pass,
+                &self.unseen_fluid,
+                &[
+                    &b.params,
+                    &b.clock,
+                    &b.position,
+                    &fg.sorted,
+                    &fg.starts,
+                    &b.velocity,
+                    &b.densities,
+                    &b.flux,
+                    &b.acceleration,
+                ],
+                groups64,
+            );
+            dispatch(
+                gpu,
+                &mut pass,
+                &self.unseen_walls,
+                &[
+                    &b.params,
+                    &b.clock,
+                    &b.position,
+                    &b.velocity,
+                    &b.walls,
+                    &b.wall_data,
+                    &wg.sorted,
+                    &wg.starts,
+                    &b.acceleration,
+                    &b.partials,
+                ],
+                partials,
+            );
+            dispatch(
+                gpu,
+                &mut pass,
+                &self.unseen_fold,
+                &[&b.consts, &b.partials, &b.control],
+                1,
+            );
+        }
         // Line 10: advection, and the containment.
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
