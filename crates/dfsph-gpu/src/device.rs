@@ -45,6 +45,34 @@ fn list_or_none(found: &[String]) -> String {
     }
 }
 
+/// The shaders' library: each function, by name, and the file that defines it. A shader
+/// that calls one gets its file appended (and, in turn, what that file calls); each file
+/// names the bindings the calling shader must declare.
+const LIBRARY: [(&str, &str); 5] = [
+    ("fluid_slots", include_str!("shaders/fluid_slots.wgsl")),
+    ("wall_slots", include_str!("shaders/wall_slots.wgsl")),
+    ("velocity_sum", include_str!("shaders/rate_sum.wgsl")),
+    ("kappa_sum", include_str!("shaders/push_sum.wgsl")),
+    ("workgroup_max", include_str!("shaders/workgroup_max.wgsl")),
+];
+
+/// `source` with the library files of the functions it calls, until none is missing.
+fn with_library(source: &str) -> String {
+    let mut out = source.to_string();
+    loop {
+        let missing = LIBRARY.iter().find(|(name, _)| {
+            out.contains(&format!("{name}(")) && !out.contains(&format!("fn {name}("))
+        });
+        match missing {
+            Some((_, file)) => {
+                out.push('\n');
+                out.push_str(file);
+            }
+            None => return out,
+        }
+    }
+}
+
 /// An open device and its queue.
 pub struct Gpu {
     pub device: wgpu::Device,
@@ -201,13 +229,15 @@ impl Gpu {
         Ok(out)
     }
 
-    /// A compute pipeline for `entry` of the WGSL `source`, its layout taken from the shader.
+    /// A compute pipeline for `entry` of the WGSL `source`, its layout taken from the shader,
+    /// with the library functions it calls ([`LIBRARY`]) added.
     pub(crate) fn pipeline(&self, source: &str, entry: &str) -> wgpu::ComputePipeline {
+        let source = with_library(source);
         let module = self
             .device
             .create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(entry),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
+                source: wgpu::ShaderSource::Wgsl(source.as_str().into()),
             });
         self.device
             .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {

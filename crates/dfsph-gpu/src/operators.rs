@@ -20,20 +20,8 @@ impl Operators {
                 include_str!("shaders/neighbour_flux.wgsl"),
                 "neighbour_flux",
             ),
-            rate: gpu.pair_pipeline(
-                concat!(
-                    include_str!("shaders/rate_sum.wgsl"),
-                    include_str!("shaders/density_rate.wgsl")
-                ),
-                "density_rate",
-            ),
-            push: gpu.pair_pipeline(
-                concat!(
-                    include_str!("shaders/push_sum.wgsl"),
-                    include_str!("shaders/pressure_push.wgsl")
-                ),
-                "pressure_push",
-            ),
+            rate: gpu.pair_pipeline(include_str!("shaders/density_rate.wgsl"), "density_rate"),
+            push: gpu.pair_pipeline(include_str!("shaders/pressure_push.wgsl"), "pressure_push"),
         }
     }
 

@@ -132,19 +132,10 @@ impl DeviceParticles {
 }
 
 impl Gpu {
-    /// A pair shader's pipeline: the prelude, `body`, and the cell walks `body` calls
-    /// (`fluid_slots`, `wall_slots`; each reads the starts its shader declares).
+    /// A pair shader's pipeline: the prelude, then `body` (and the library functions it
+    /// calls, `Gpu::pipeline`).
     pub(crate) fn pair_pipeline(&self, body: &str, entry: &str) -> wgpu::ComputePipeline {
-        let mut source = format!("{}\n{body}", include_str!("shaders/pairs_prelude.wgsl"));
-        for (call, walk) in [
-            ("fluid_slots(", include_str!("shaders/fluid_slots.wgsl")),
-            ("wall_slots(", include_str!("shaders/wall_slots.wgsl")),
-        ] {
-            if body.contains(call) {
-                source.push('\n');
-                source.push_str(walk);
-            }
-        }
+        let source = format!("{}\n{body}", include_str!("shaders/pairs_prelude.wgsl"));
         self.pipeline(&source, entry)
     }
 

@@ -1,6 +1,6 @@
 // The fluid's slots in the k-th (0 ≤ k < 9) of the 3 × 3 cells around `home`:
 // `fluid_sorted[r.x..r.y]`, none outside the grid. Added to a pair shader that calls it
-// (`Gpu::pair_pipeline`), which declares `fluid_starts`.
+// (`Gpu::pipeline`), which declares `fluid_starts`.
 fn fluid_slots(home: vec2<i32>, k: u32) -> vec2<u32> {
     let c = neighbour_cell(home, k);
     if c < 0 {

@@ -1,6 +1,6 @@
 // Σ_j κ_j ∇W_ij over fluid particle i's neighbours j ≠ i (at x, in the 3 × 3 cells around
 // it): the neighbours' share of the push a stiffness field κ gives i (TVCG 2017, eq. 9 and
-// 12, in volumes, times V). The shader that includes it declares `fluid`, `fluid_sorted`,
+// 12, in volumes, times V). The shader that calls it (`Gpu::pipeline` adds this file) declares `fluid`, `fluid_sorted`,
 // `fluid_starts` and `kappa`.
 fn kappa_sum(i: u32, x: vec2<f32>) -> vec2<f32> {
     let home = cell_of(x);

@@ -1,6 +1,6 @@
 // Σ_j v_j·∇W_ij over fluid particle i's neighbours j ≠ i (at x, in the 3 × 3 cells around
 // it): the fluid's share of i's density rate (TVCG 2017, eq. 7, in volumes, times V). The
-// shader that includes it declares `fluid`, `fluid_sorted`, `fluid_starts` and `velocity`.
+// shader that calls it (`Gpu::pipeline` adds this file) declares `fluid`, `fluid_sorted`, `fluid_starts` and `velocity`.
 fn velocity_sum(i: u32, x: vec2<f32>) -> f32 {
     let home = cell_of(x);
     let h2 = params.h * params.h;

@@ -2,8 +2,6 @@
 @group(0) @binding(1) var<storage, read> velocity: array<vec2<f32>>;
 @group(0) @binding(2) var<storage, read_write> partials: array<vec2<f32>>;
 
-var<workgroup> values: array<f32, 256>;
-
 @compute @workgroup_size(256)
 fn speed(
     @builtin(global_invocation_id) id: vec3<u32>,
@@ -16,15 +14,8 @@ fn speed(
         let v = velocity[id.x];
         v2 = dot(v, v);
     }
-    values[t] = v2;
-    workgroupBarrier();
-    for (var half = 128u; half > 0u; half /= 2u) {
-        if t < half {
-            values[t] = max(values[t], values[t + half]);
-        }
-        workgroupBarrier();
-    }
+    let m = workgroup_max(t, v2);
     if t == 0u {
-        partials[wid.x] = vec2<f32>(values[0], 0.0);
+        partials[wid.x] = vec2<f32>(m, 0.0);
     }
 }

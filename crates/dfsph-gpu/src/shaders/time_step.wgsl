@@ -8,8 +8,6 @@
 @group(0) @binding(1) var<storage, read> partials: array<vec2<f32>>;
 @group(0) @binding(2) var<storage, read_write> control: Control;
 
-var<workgroup> values: array<f32, 256>;
-
 @compute @workgroup_size(256)
 fn time_step(@builtin(local_invocation_id) lid: vec3<u32>) {
     let t = lid.x;
@@ -17,18 +15,11 @@ fn time_step(@builtin(local_invocation_id) lid: vec3<u32>) {
     for (var k = t; k < consts.partials; k += 256u) {
         m = max(m, partials[k].x);
     }
-    values[t] = m;
-    workgroupBarrier();
-    for (var half = 128u; half > 0u; half /= 2u) {
-        if t < half {
-            values[t] = max(values[t], values[t + half]);
-        }
-        workgroupBarrier();
-    }
+    let largest = workgroup_max(t, m);
     if t != 0u {
         return;
     }
-    let fluid_max = sqrt(values[0]);
+    let fluid_max = sqrt(largest);
     let v_max = max(fluid_max, consts.wall_speed);
     var dt = consts.dt_upper;
     if v_max > 0.0 {

@@ -2,7 +2,8 @@
 // part (`dfsph::solver::unseen_compression`), per fluid particle at the velocities the
 // solve left: the kernel sum over its fluid neighbours (those within the support at the
 // step's start) at the positions x + Δt·v the step moves them to, itself included, and the
-// solve's prediction ρ_i/ρ0 + Δt·(v_i·g_i − V Σ_j v_j·∇W_ij − f_i). `unseen_walls.wgsl`
+// solve's prediction ρ_i/ρ0 + Δt·(v_i·g_i − V Σ_j v_j·∇W_ij − f_i), the sum
+// `rate_sum.wgsl`'s. `unseen_walls.wgsl`
 // adds the walls and takes the largest excess.
 @group(0) @binding(1) var<uniform> clock: Control;
 @group(0) @binding(2) var<storage, read> fluid: array<vec2<f32>>;
@@ -27,7 +28,6 @@ fn unseen_fluid(@builtin(global_invocation_id) id: vec3<u32>) {
     let home = cell_of(x);
     let h2 = params.h * params.h;
     var sum = w(0.0);
-    var rate_sum = 0.0;
     for (var k = 0u; k < 9u; k++) {
         let fluid_range = fluid_slots(home, k);
         for (var s = fluid_range.x; s < fluid_range.y; s++) {
@@ -35,13 +35,11 @@ fn unseen_fluid(@builtin(global_invocation_id) id: vec3<u32>) {
             let d = x - fluid[j];
             let r2 = dot(d, d);
             if r2 < h2 && j != i {
-                let vj = velocity[j];
-                rate_sum += dot(vj, grad_w(d, sqrt(r2)));
-                sum += w(length(moved - (fluid[j] + dt * vj)));
+                sum += w(length(moved - (fluid[j] + dt * velocity[j])));
             }
         }
     }
     let dens = densities[i];
-    let rate = dot(v, dens.zw) - params.volume * rate_sum - flux[i].x;
+    let rate = dot(v, dens.zw) - params.volume * velocity_sum(i, x) - flux[i].x;
     advected[i] = vec2<f32>(params.volume * sum, dens.x + dt * rate);
 }

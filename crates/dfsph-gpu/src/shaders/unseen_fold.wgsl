@@ -4,8 +4,6 @@
 @group(0) @binding(1) var<storage, read> partials: array<vec2<f32>>;
 @group(0) @binding(2) var<storage, read_write> control: Control;
 
-var<workgroup> values: array<f32, 256>;
-
 @compute @workgroup_size(256)
 fn unseen_fold(@builtin(local_invocation_id) lid: vec3<u32>) {
     let t = lid.x;
@@ -13,15 +11,8 @@ fn unseen_fold(@builtin(local_invocation_id) lid: vec3<u32>) {
     for (var k = t; k < consts.partials; k += 256u) {
         m = max(m, partials[k].x);
     }
-    values[t] = m;
-    workgroupBarrier();
-    for (var half = 128u; half > 0u; half /= 2u) {
-        if t < half {
-            values[t] = max(values[t], values[t + half]);
-        }
-        workgroupBarrier();
-    }
+    let largest = workgroup_max(t, m);
     if t == 0u {
-        control.unseen = values[0];
+        control.unseen = largest;
     }
 }

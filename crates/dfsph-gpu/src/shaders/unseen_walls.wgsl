@@ -13,8 +13,6 @@
 @group(0) @binding(8) var<storage, read> advected: array<vec2<f32>>;
 @group(0) @binding(9) var<storage, read_write> partials: array<vec2<f32>>;
 
-var<workgroup> values: array<f32, 256>;
-
 @compute @workgroup_size(256)
 fn unseen_walls(
     @builtin(global_invocation_id) id: vec3<u32>,
@@ -48,15 +46,8 @@ fn unseen_walls(
         }
         unseen = max(min(sum - advected[i].y, sum - 1.0), 0.0);
     }
-    values[t] = unseen;
-    workgroupBarrier();
-    for (var half = 128u; half > 0u; half /= 2u) {
-        if t < half {
-            values[t] = max(values[t], values[t + half]);
-        }
-        workgroupBarrier();
-    }
+    let m = workgroup_max(t, unseen);
     if t == 0u {
-        partials[wid.x] = vec2<f32>(values[0], 0.0);
+        partials[wid.x] = vec2<f32>(m, 0.0);
     }
 }

@@ -230,20 +230,11 @@ impl DeviceStep {
             ),
             begin: pair(include_str!("../shaders/jacobi_begin.wgsl"), "jacobi_begin"),
             residual: pair(
-                concat!(
-                    include_str!("../shaders/rate_sum.wgsl"),
-                    include_str!("../shaders/jacobi_residual.wgsl")
-                ),
+                include_str!("../shaders/jacobi_residual.wgsl"),
                 "jacobi_residual",
             ),
             warm: pair(include_str!("../shaders/jacobi_warm.wgsl"), "jacobi_warm"),
-            apply: pair(
-                concat!(
-                    include_str!("../shaders/push_sum.wgsl"),
-                    include_str!("../shaders/jacobi_apply.wgsl")
-                ),
-                "jacobi_apply",
-            ),
+            apply: pair(include_str!("../shaders/jacobi_apply.wgsl"), "jacobi_apply"),
             control: alone(
                 include_str!("../shaders/jacobi_control.wgsl"),
                 "jacobi_control",
