@@ -19,7 +19,7 @@ use dfsph::kernel::KernelShape;
 use dfsph::retry::{max_displacement, AttemptCheck, Attempts};
 use dfsph::scene::{Method, PressureSolve};
 use dfsph::settings::SolverSettings;
-use dfsph::world::{step_seconds, World, MAX_SHAKE_ACCELERATION};
+use dfsph::world::{step_seconds, World};
 use dfsph::Vec2;
 
 use crate::device::Gpu;
@@ -118,18 +118,9 @@ impl GpuBackend {
         let (outer_lo, outer_hi) = world.tank_containment();
         let pointer = world.pointer().filter(|p| p.radius > 0.0);
         let g = world.gravity();
-        let wall_speed = world.fastest_wall_speed();
-        // The displacement bound's acceleration, as `World::cfl_time_step` sums it.
-        let mut accel = g.length();
-        if let Some(p) = pointer {
-            accel += p.strength.abs().min(MAX_POINTER_ACCELERATION);
-        }
-        if world.is_shaken() || wall_speed > 0.0 {
-            accel += MAX_SHAKE_ACCELERATION;
-        }
-        let upper = (ts.max as f32)
-            .min(world.viscous_time_step(&self.settings))
-            .min(world.pressure_wave_time_step(self.settings.pressure_wave_stability));
+        let (accel, pulls) = world.displacement_acceleration();
+        let upper =
+            world.time_step_upper_bound(&self.settings, world.viscous_time_step(&self.settings));
         let (at, radius, strength) = pointer.map_or((Vec2::ZERO, 0.0, 0.0), |p| {
             let s = p
                 .strength
@@ -154,8 +145,8 @@ impl GpuBackend {
             dt_min: ts.min as f32,
             dt_upper: upper,
             accel,
-            wall_speed,
-            pulls: pointer.is_some_and(|p| p.strength < 0.0) as u32,
+            wall_speed: world.fastest_wall_speed(),
+            pulls: pulls as u32,
             reach: self.settings.max_step_displacement * d,
             spacing: d,
             partials: 0,
@@ -201,7 +192,7 @@ impl GpuBackend {
     /// One step on the device; an error leaves the fluid as the step found it (the tank
     /// already driven).
     fn step_on_device(&mut self, world: &mut World) -> Result<(), crate::GpuError> {
-        world.drive_tank_by(self.last_dt);
+        world.drive_tank(self.last_dt);
         world.refresh_wall_volumes();
         let n = world.fluid_count();
         let consts = self.consts(world);
@@ -304,10 +295,10 @@ impl GpuBackend {
 
     /// Close a step of `dt`: move the walls, advance the clock, fill the statistics.
     fn finish(&mut self, world: &mut World, dt: f32, out: Option<&crate::step::StepOutput>) {
-        world.move_walls_by(dt);
+        world.move_walls(dt);
         world.advance_clock(dt);
         self.last_dt = dt;
-        let (max_speed, kinetic_energy) = world.fastest_speed_and_energy();
+        let (max_speed, kinetic_energy) = world.speed_and_energy();
         let c = out.map(|o| o.control).unwrap_or_default();
         let (clamped, non_finite) = out.map_or((0, 0), |o| (o.clamped, o.non_finite));
         self.totals.0 += clamped as u64;

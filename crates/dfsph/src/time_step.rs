@@ -47,6 +47,31 @@ impl World {
         stability * self.spacing / (g * extent).sqrt()
     }
 
+    /// The bound on Δt that is not the flow's, s: the scene's `time_step.max`, the viscosity's
+    /// `viscous_bound` and [`Self::pressure_wave_time_step`]. The explicit viscosity is stable
+    /// only below its bound (`viscosity::Laplacian`); like the others it beats the scene's
+    /// minimum Δt: a step below the minimum is slow, one above the bound blows up.
+    pub fn time_step_upper_bound(&self, settings: &SolverSettings, viscous_bound: f32) -> f32 {
+        (self.scene.time_step.max as f32)
+            .min(viscous_bound)
+            .min(self.pressure_wave_time_step(settings.pressure_wave_stability))
+    }
+
+    /// The acceleration the displacement bound allows for, m/s², besides a pull's damping:
+    /// gravity's, the pointer's and the shaken tank's; and whether the pointer pulls (its
+    /// damping adds 4·|v| of the fastest particle).
+    pub fn displacement_acceleration(&self) -> (f32, bool) {
+        let mut acceleration = self.gravity.length();
+        let pointer = self.pointer.filter(|p| p.radius > 0.0);
+        if let Some(p) = pointer {
+            acceleration += p.strength.abs().min(forces::MAX_POINTER_ACCELERATION);
+        }
+        if self.shake_drive != 0.0 || self.fastest_wall_speed() > 0.0 {
+            acceleration += MAX_SHAKE_ACCELERATION;
+        }
+        (acceleration, pointer.is_some_and(|p| p.strength < 0.0))
+    }
+
     /// CFL condition `Δt = λ·d / v_max` (v_max includes moving walls; WCSPH adds the speed of
     /// sound), at most `√(λ·d/|g|)`, clamped to the scene's bounds; then at most the viscous
     /// stability bound, [`Self::pressure_wave_time_step`] and [`step_displacement_bound`],
@@ -67,11 +92,7 @@ impl World {
             .map(|v| v.length_squared())
             .reduce(|| 0.0, f32::max)
             .sqrt();
-        let wall_max = self
-            .bodies
-            .iter()
-            .map(|b| b.velocity.length())
-            .fold(0.0, f32::max);
+        let wall_max = self.fastest_wall_speed();
         let mut v_max = fluid_max.max(wall_max);
         if let Some(sound) = sound_speed {
             v_max += sound;
@@ -88,12 +109,7 @@ impl World {
         if g > 0.0 {
             dt = dt.min((ts.cfl as f32 * self.spacing / g).sqrt());
         }
-        // The explicit viscosity is stable only below a bound (`viscosity::Laplacian`). This
-        // bound beats the scene's minimum Δt: a step below the minimum is slow, one above the
-        // bound blows up.
-        let upper = (ts.max as f32)
-            .min(viscous_bound)
-            .min(self.pressure_wave_time_step(settings.pressure_wave_stability));
+        let upper = self.time_step_upper_bound(settings, viscous_bound);
         // No step may carry water through a wall: the distance a particle travels in it under
         // the step's accelerations, |v|·Δt + ½|a|·Δt², stays within MAX_STEP_DISPLACEMENT·d
         // ([`step_displacement_bound`]). Like the viscous bound it beats the scene's minimum
@@ -101,17 +117,10 @@ impl World {
         // bring it lower). The speed is the fastest particle's plus the fastest wall's (they
         // may close on each other); the acceleration is gravity's, the pointer's, and the
         // shaken tank's.
-        let mut acceleration = g;
-        if let Some(p) = self.pointer.filter(|p| p.radius > 0.0) {
-            let strength = p.strength.abs().min(forces::MAX_POINTER_ACCELERATION);
-            acceleration += strength;
-            if p.strength < 0.0 {
-                // A pull also damps the velocity relative to the pointer (4·|v| at most).
-                acceleration += 4.0 * fluid_max;
-            }
-        }
-        if self.shake_drive != 0.0 || wall_max > 0.0 {
-            acceleration += MAX_SHAKE_ACCELERATION;
+        let (mut acceleration, pulls) = self.displacement_acceleration();
+        if pulls {
+            // A pull also damps the velocity relative to the pointer (4·|v| at most).
+            acceleration += 4.0 * fluid_max;
         }
         let bound = step_displacement_bound(
             (fluid_max + wall_max) as f64,

@@ -276,7 +276,7 @@ impl World {
     /// `drive · MAX_SHAKE_OFFSET`, with bounded acceleration and speed, so holding a key
     /// slides the tank over and releasing it brings the tank back. Every body (obstacles,
     /// drawn walls) moves with the tank.
-    pub(crate) fn drive_tank(&mut self, dt: f32) {
+    pub fn drive_tank(&mut self, dt: f32) {
         let tank = &mut self.bodies[0];
         let target = self.shake_drive * MAX_SHAKE_OFFSET;
         let omega = 2.0 * std::f32::consts::PI * SHAKE_FREQUENCY;
@@ -305,8 +305,9 @@ impl World {
         }
     }
 
-    /// Move the tank and the walls fixed to it by their velocities over `dt`.
-    pub(crate) fn move_walls(&mut self, dt: f32) {
+    /// Move the tank and the walls fixed to it by their velocities over `dt` (s): what a step
+    /// does after advecting the fluid.
+    pub fn move_walls(&mut self, dt: f32) {
         if self
             .bodies
             .iter()
@@ -376,7 +377,7 @@ impl World {
     }
 
     /// The fastest fluid particle's speed, m/s, and the fluid's kinetic energy, J/m.
-    pub(crate) fn speed_and_energy(&self) -> (f64, f64) {
+    pub fn speed_and_energy(&self) -> (f64, f64) {
         let (sum2, max2) =
             crate::reduce::sum_and_max(&self.fluid.velocity, |v| v.length_squared() as f64);
         let mass = self.particle_mass() as f64;
@@ -586,18 +587,6 @@ impl World {
         self.shake_drive != 0.0
     }
 
-    /// Move the tank by its shake drive over a step of `dt` (s), the walls fixed to it with
-    /// it: the first thing a step does, with the previous step's Δt.
-    pub fn drive_tank_by(&mut self, dt: f32) {
-        self.drive_tank(dt);
-    }
-
-    /// Move the tank and the walls fixed to it by their velocities over `dt` (s): what a step
-    /// does after advecting the fluid.
-    pub fn move_walls_by(&mut self, dt: f32) {
-        self.move_walls(dt);
-    }
-
     /// When wall particles were added or removed since the last call (a drawn or erased wall,
     /// a body), compute the volume Ψ_b of those that have none (Akinci et al. 2012, with the
     /// CPU backend's correction γ; lattice walls come with theirs) and say so; also clear the
@@ -627,11 +616,6 @@ impl World {
     pub fn advance_clock(&mut self, dt: f32) {
         self.time += step_seconds(dt);
         self.step_count += 1;
-    }
-
-    /// The fastest fluid particle's speed, m/s, and the fluid's kinetic energy, J/m.
-    pub fn fastest_speed_and_energy(&self) -> (f64, f64) {
-        self.speed_and_energy()
     }
 }
 
