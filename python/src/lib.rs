@@ -335,32 +335,16 @@ impl PySimulation {
     }
 }
 
-/// The factory of the backend `name` names (`None`: the CPU's), the device opened once per
-/// process: `cpu`, `gpu` (a hardware adapter, else a software one) or `auto` (a hardware
-/// adapter, else the CPU), as the command line's `--backend`.
+/// The factory of the backend `name` names (`None`: the CPU's; the device is opened once
+/// per process): `cpu`, `gpu` (a hardware adapter, else a software one) or `auto` (a
+/// hardware adapter, else the CPU), as the command line's `--backend`.
 fn backend_factory(name: &str) -> PyResult<Option<dfsph::simulation::BackendFactory>> {
-    type Opened = Result<Option<dfsph::simulation::BackendFactory>, String>;
-    static OPENED: [std::sync::OnceLock<Opened>; 3] = [
-        std::sync::OnceLock::new(),
-        std::sync::OnceLock::new(),
-        std::sync::OnceLock::new(),
-    ];
     let choice: dfsph_gpu::BackendChoice = name
         .parse()
         .map_err(|e: String| PyValueError::new_err(format!("backend: {e}")))?;
-    let slot = match choice {
-        dfsph_gpu::BackendChoice::Cpu => 0,
-        dfsph_gpu::BackendChoice::Gpu => 1,
-        dfsph_gpu::BackendChoice::Auto => 2,
-    };
-    OPENED[slot]
-        .get_or_init(|| {
-            dfsph_gpu::backend_factory(choice)
-                .map(|(factory, _)| factory)
-                .map_err(|e| format!("backend {name:?}: {e}"))
-        })
-        .clone()
-        .map_err(PyRuntimeError::new_err)
+    dfsph_gpu::backend_factory(choice)
+        .map(|(factory, _)| factory)
+        .map_err(|e| PyRuntimeError::new_err(format!("backend {name:?}: {e}")))
 }
 
 #[pymethods]

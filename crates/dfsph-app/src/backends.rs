@@ -2,25 +2,16 @@
 //! that builds a simulation goes through [`simulation`], so all refuse an unavailable GPU
 //! with the same one line and say the same where the choice falls back.
 
-use std::sync::OnceLock;
-
 use dfsph::memory::MemoryLimits;
 use dfsph::simulation::BackendFactory;
 use dfsph::{Scene, Simulation};
-
-/// What [`factory`] found for each choice: a device is opened once per process.
-type Opened = Result<(Option<BackendFactory>, Option<String>), String>;
-static OPENED: [OnceLock<Opened>; 3] = [OnceLock::new(), OnceLock::new(), OnceLock::new()];
 
 /// The factory of the backend `choice` names (`None`: the CPU's) and the notes to print,
 /// or the one line saying why it cannot be had (which adapters wgpu found). The device is
 /// opened on the first call and shared by every simulation of the process.
 pub fn factory(choice: Backend) -> Result<(Option<BackendFactory>, Vec<String>), String> {
-    let opened = OPENED[choice as usize].get_or_init(|| {
-        dfsph_gpu::backend_factory(choice.choice())
-            .map_err(|e| format!("--backend {}: {e}", choice.name()))
-    });
-    let (factory, note) = opened.clone()?;
+    let (factory, note) = dfsph_gpu::backend_factory(choice.choice())
+        .map_err(|e| format!("--backend {}: {e}", choice.name()))?;
     Ok((factory, note.into_iter().collect()))
 }
 

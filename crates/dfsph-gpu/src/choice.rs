@@ -1,7 +1,7 @@
 //! Which backend steps a simulation, as a user asks for it (`--backend cpu|gpu|auto`,
 //! Python's `backend=`): the factory [`dfsph::Simulation::with_backend`] takes.
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use dfsph::simulation::BackendFactory;
 
@@ -35,11 +35,24 @@ impl std::str::FromStr for BackendChoice {
     }
 }
 
+/// What [`backend_factory`] found for a choice.
+type Opened = Result<(Option<BackendFactory>, Option<String>), GpuError>;
+
 /// The factory of the backend `choice` names (`None`: the CPU backend's) and a note for
-/// the user where the choice fell back or runs on a software adapter.
-pub fn backend_factory(
-    choice: BackendChoice,
-) -> Result<(Option<BackendFactory>, Option<String>), GpuError> {
+/// the user where the choice fell back or runs on a software adapter. The device is opened
+/// on the first call for a choice and shared by every simulation of the process.
+pub fn backend_factory(choice: BackendChoice) -> Opened {
+    static OPENED: [OnceLock<Opened>; 3] = [OnceLock::new(), OnceLock::new(), OnceLock::new()];
+    let slot = match choice {
+        BackendChoice::Cpu => 0,
+        BackendChoice::Gpu => 1,
+        BackendChoice::Auto => 2,
+    };
+    OPENED[slot].get_or_init(|| open(choice)).clone()
+}
+
+/// [`backend_factory`]'s work: open the device `choice` asks for.
+fn open(choice: BackendChoice) -> Opened {
     let gpu = match choice {
         BackendChoice::Cpu => return Ok((None, None)),
         BackendChoice::Auto => match Gpu::new(AdapterChoice::Hardware) {

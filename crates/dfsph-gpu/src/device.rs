@@ -13,7 +13,7 @@ pub enum AdapterChoice {
 }
 
 /// Why no device was opened.
-#[derive(Debug, Error)]
+#[derive(Clone, Debug, Error)]
 pub enum GpuError {
     #[error("no {0} GPU adapter: wgpu found {found}", found = list_or_none(.1))]
     NoAdapter(&'static str, Vec<String>),
