@@ -372,8 +372,11 @@ def test_the_gpu_backend_steps_the_dam_break_as_the_cpu_does():
     # The same water to the rounding of sums taken in another order (ids are in order).
     assert np.abs(gpu.positions - cpu.positions).max() < 1e-5
     assert gpu.velocities[:, 1].min() < -0.03
-    # A scene on the conjugate-gradient solve steps on the CPU, and says why.
+    # The built-in tank at rest (the deflated conjugate-gradient solve) steps on the device.
     deep = dfsph2d.Simulation("hydrostatic", backend="gpu")
-    assert deep.backend.startswith("cpu (no conjugate-gradient solve on the GPU yet)"), deep.backend
+    assert deep.backend.startswith("gpu: "), deep.backend
+    # A WCSPH scene steps on the CPU, and says why.
+    wcsph = dfsph2d.Simulation(dict(scene, solver={"method": "wcsph"}), backend="gpu")
+    assert wcsph.backend.startswith("cpu (no WCSPH on the GPU yet)"), wcsph.backend
     with pytest.raises(ValueError, match="backend: `tpu` is not a backend"):
         dfsph2d.Simulation(scene, backend="tpu")

@@ -4,26 +4,31 @@
 //! the world as with the CPU backend.
 //!
 //! What the device does not do yet, the CPU backend does, and [`GpuBackend::describe`]
-//! says why: the conjugate-gradient density solve (every scene's default but the built-in
-//! collapsing columns'), WCSPH, the Wendland C2 kernel and rigid bodies. A device that
-//! fails mid-run hands the world to the CPU backend the same way, never silently.
+//! says why: WCSPH, the Wendland C2 kernel, rigid bodies, more fluid than one dispatch
+//! covers, and water spread so thinly that the deflation's coarse matrix would not fit. A
+//! device that fails mid-run hands the world to the CPU backend the same way, never
+//! silently.
 
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use dfsph::backend::{Backend, StepStats};
-use dfsph::boundary::{AkinciWalls, BoundaryModel};
+use dfsph::boundary::{AkinciWalls, BoundaryModel, MirroredWalls};
 use dfsph::cpu::CpuBackend;
 use dfsph::forces::MAX_POINTER_ACCELERATION;
 use dfsph::kernel::KernelShape;
+use dfsph::pressure::MIN_CELL_SUPPORTS;
 use dfsph::retry::{max_displacement, AttemptCheck, Attempts};
-use dfsph::scene::{Method, PressureSolve};
+use dfsph::scene::Method;
 use dfsph::settings::SolverSettings;
 use dfsph::world::{step_seconds, World};
 use dfsph::Vec2;
 
 use crate::device::Gpu;
-use crate::step::{DeviceStep, Solve, StepConsts, StepInput};
+use crate::step::{
+    coarse_capacity, CgSolve, DensitySolve, DeviceStep, Solve, StepConsts, StepInput,
+    MAX_COARSE_ENTRIES,
+};
 
 /// The most fluid particles one dispatch covers (65,535 workgroups of 64).
 const MAX_FLUID: usize = 65_535 * 64;
@@ -37,6 +42,12 @@ pub struct GpuBackend {
     /// A device error that made the CPU take over for good.
     failed: Option<String>,
     settings: SolverSettings,
+    /// The lattice's gradient consistency c (`World::gradient_consistency`).
+    gradient_consistency: f32,
+    /// The walls of the scene's density solve, and the scale of its stored pressure's
+    /// force (1/c for the conjugate gradients, which store the physical pressure).
+    wall_model: &'static dyn BoundaryModel,
+    pressure_scale: f32,
     /// Δt of the previous step, s.
     last_dt: f32,
     /// Upper bound on Δt after a step had to be redone, growing back by
@@ -57,25 +68,36 @@ impl GpuBackend {
             cpu: None,
             failed: None,
             settings: SolverSettings::from_scene(world.scene()),
+            gradient_consistency: 1.0,
+            wall_model: &AkinciWalls,
+            pressure_scale: 1.0,
             last_dt: world.scene().time_step.max as f32,
             retry_dt_limit: f32::INFINITY,
             stats: StepStats::default(),
             totals: (0, 0),
             stop_flag: None,
         };
+        backend.resolve_scene(world);
+        // The conjugate-gradient solve starts from the pressure of water at rest, as on the
+        // CPU (`PressureSolver::initial_pressure`).
+        if world.conjugate_gradient() {
+            let d = world.spacing();
+            let p = dfsph::pressure::hydrostatic_pressure(world.positions(), world.gravity(), d);
+            world.fluid_mut().pressure_over_rho0 = p;
+        }
         backend.choose(world);
         backend.stats.n_fluid = world.fluid_count();
         backend.stats.n_boundary = world.boundary().position.len();
         backend
     }
 
-    /// What in `world` the device does not do yet, if anything.
-    pub fn unsupported(world: &World) -> Option<String> {
+    /// What in `world`, stepped with `settings`, the device does not do yet, if anything.
+    pub fn unsupported(world: &World, settings: &SolverSettings) -> Option<String> {
         let solver = &world.scene().solver;
         let reason = if solver.method != Method::Dfsph {
             "no WCSPH on the GPU yet"
-        } else if solver.pressure_solve != PressureSolve::Jacobi {
-            "no conjugate-gradient solve on the GPU yet"
+        } else if Self::coarse_entries(world, settings) > MAX_COARSE_ENTRIES {
+            "the water is spread too thinly for the GPU's coarse space"
         } else if solver.kernel != KernelShape::CubicSpline {
             "no Wendland C2 kernel on the GPU yet"
         } else if world.rigid_body_count() > 0 {
@@ -88,10 +110,35 @@ impl GpuBackend {
         Some(reason.to_string())
     }
 
+    /// The width of the deflation's aggregates, m (`SolverSettings::coarse_cell_supports`
+    /// kernel supports, at least four; 0 without deflation).
+    fn coarse_cell(world: &World, settings: &SolverSettings) -> f32 {
+        let supports = settings.coarse_cell_supports;
+        if world.conjugate_gradient() && supports > 0.0 {
+            supports.max(MIN_CELL_SUPPORTS) * world.kernel().support()
+        } else {
+            0.0
+        }
+    }
+
+    /// The most entries the coarse matrix of `world`'s water can need on the device.
+    fn coarse_entries(world: &World, settings: &SolverSettings) -> usize {
+        match Self::coarse_cell(world, settings) {
+            0.0 => 0,
+            cell => {
+                let (aggregates, half_band) = coarse_capacity(world.positions(), cell);
+                aggregates.saturating_mul(half_band + 1)
+            }
+        }
+    }
+
     /// Step on the device when it can take `world`, else on the CPU (a CPU backend is made
     /// when the world first needs one, and dropped when it no longer does).
     fn choose(&mut self, world: &mut World) {
-        let reason = self.failed.clone().or_else(|| Self::unsupported(world));
+        let reason = self
+            .failed
+            .clone()
+            .or_else(|| Self::unsupported(world, &self.settings));
         match (reason, &mut self.cpu) {
             (Some(reason), Some((_, why))) => *why = reason,
             (Some(reason), None) => {
@@ -151,12 +198,33 @@ impl GpuBackend {
             spacing: d,
             partials: 0,
             dt_cap: self.retry_dt_limit,
-            pad: [0; 2],
+            ghost_slope: self
+                .wall_model
+                .hydrostatic_ghost_gradient(g)
+                .map_or([0.0; 2], |g| (g / self.gradient_consistency).to_array()),
         }
     }
 
-    /// The two Jacobi solves' constants (`dfsph::pressure::jacobi`).
-    fn solves(&self, world: &World) -> (Option<Solve>, Solve) {
+    /// The settings, walls and pressure scale of the scene as it stands (as the CPU
+    /// backend's `PressureSolver` gives them): mirrored walls and the physical pressure for
+    /// the conjugate gradients, Akinci's walls for the Jacobi iteration.
+    fn resolve_scene(&mut self, world: &World) {
+        self.settings = SolverSettings::from_scene(world.scene());
+        self.gradient_consistency = world.gradient_consistency();
+        (self.wall_model, self.pressure_scale) = if world.conjugate_gradient() {
+            (
+                &MirroredWalls as &dyn BoundaryModel,
+                1.0 / self.gradient_consistency,
+            )
+        } else {
+            (&AkinciWalls as &dyn BoundaryModel, 1.0)
+        };
+    }
+
+    /// The solves' constants: the divergence solve's Jacobi iteration
+    /// (`dfsph::pressure::jacobi`), and the density solve's, Jacobi or conjugate gradients
+    /// (`dfsph::pressure::conjugate_gradient`).
+    fn solves(&self, world: &World) -> (Option<Solve>, DensitySolve) {
         let s = &self.settings;
         let warm_share = if s.warm_start {
             s.jacobi_warm_share
@@ -178,13 +246,37 @@ impl GpuBackend {
             min_neighbours: s.divergence_min_neighbors as f32,
             ..base
         });
-        let density = Solve {
-            density: 1,
-            gated: 1,
-            tolerance_pct: s.density.tolerance_pct as f32,
-            max_error_pct: s.density.max_error_pct as f32,
-            max_correction_rate: s.max_correction_speed / world.spacing(),
-            ..base
+        let (tolerance_pct, max_error_pct) = (
+            s.density.tolerance_pct as f32,
+            s.density.max_error_pct as f32,
+        );
+        let max_correction_rate = s.max_correction_speed / world.spacing();
+        let density = if world.conjugate_gradient() {
+            DensitySolve::ConjugateGradient(CgSolve {
+                min_iterations: s.density.min_iterations,
+                max_iterations: s.density.max_iterations,
+                warm: s.warm_start as u32,
+                tolerance_pct,
+                max_error_pct,
+                growth: s.diverging_error_growth as f32,
+                min_neighbours: s.conjugate_gradient_min_neighbors as f32,
+                max_correction_rate,
+                dead_band: s.compression_dead_band * tolerance_pct / 100.0,
+                consistency: self.gradient_consistency,
+                coarse_cell: Self::coarse_cell(world, s),
+                density_speed: tolerance_pct / 100.0 * world.spacing(),
+                gravity_impulse: s.gravity_impulse_tolerance * world.gravity().length(),
+                ..CgSolve::default()
+            })
+        } else {
+            DensitySolve::Jacobi(Solve {
+                density: 1,
+                gated: 1,
+                tolerance_pct,
+                max_error_pct,
+                max_correction_rate,
+                ..base
+            })
         };
         (divergence, density)
     }
@@ -233,6 +325,7 @@ impl GpuBackend {
                 support: h,
                 volume,
                 max_factor,
+                wall_weight: self.wall_model.gradient_weight(),
                 bounds,
                 consts,
                 divergence,
@@ -342,7 +435,7 @@ impl Backend for GpuBackend {
     }
 
     fn scene_changed(&mut self, world: &World) {
-        self.settings = SolverSettings::from_scene(world.scene());
+        self.resolve_scene(world);
         if let Some((cpu, _)) = &mut self.cpu {
             cpu.scene_changed(world);
         }
@@ -403,21 +496,22 @@ impl Backend for GpuBackend {
                 } else {
                     0.0
                 };
-                world.pressures_over_rho0()[i] + kv
+                world.pressures_over_rho0()[i] * self.pressure_scale + kv
             }
         }
     }
 
     fn pressure_force_scale(&self) -> f32 {
-        self.cpu
-            .as_ref()
-            .map_or(1.0, |(c, _)| c.pressure_force_scale())
+        match &self.cpu {
+            Some((cpu, _)) => cpu.pressure_force_scale(),
+            None => self.pressure_scale,
+        }
     }
 
     fn wall_model(&self) -> &'static dyn BoundaryModel {
         match &self.cpu {
             Some((cpu, _)) => cpu.wall_model(),
-            None => &AkinciWalls,
+            None => self.wall_model,
         }
     }
 

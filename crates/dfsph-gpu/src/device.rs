@@ -48,12 +48,23 @@ fn list_or_none(found: &[String]) -> String {
 /// The shaders' library: each function, by name, and the file that defines it. A shader
 /// that calls one gets its file appended (and, in turn, what that file calls); each file
 /// names the bindings the calling shader must declare.
-const LIBRARY: [(&str, &str); 5] = [
+const LIBRARY: [(&str, &str); 16] = [
     ("fluid_slots", include_str!("shaders/fluid_slots.wgsl")),
     ("wall_slots", include_str!("shaders/wall_slots.wgsl")),
     ("velocity_sum", include_str!("shaders/rate_sum.wgsl")),
     ("kappa_sum", include_str!("shaders/push_sum.wgsl")),
     ("workgroup_max", include_str!("shaders/workgroup_max.wgsl")),
+    ("cg_tree_sum", include_str!("shaders/cg_sums.wgsl")),
+    ("cg_inside", include_str!("shaders/cg_inside.wgsl")),
+    ("cg_full", include_str!("shaders/cg_inside.wgsl")),
+    ("cg_sizes", include_str!("shaders/cg_sizes.wgsl")),
+    ("cg_bounds_tree", include_str!("shaders/cg_sums.wgsl")),
+    ("coarse_place", include_str!("shaders/coarse.wgsl")),
+    ("coarse_key", include_str!("shaders/coarse.wgsl")),
+    ("coarse_cell", include_str!("shaders/coarse.wgsl")),
+    ("coarse_colour_of", include_str!("shaders/coarse.wgsl")),
+    ("coarse_target", include_str!("shaders/coarse.wgsl")),
+    ("fine_cells", include_str!("shaders/fine_cells.wgsl")),
 ];
 
 /// `source` with the library files of the functions it calls, until none is missing.

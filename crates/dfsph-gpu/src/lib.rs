@@ -10,9 +10,9 @@
 //! checked against the CPU solver's formulas on a software Vulkan device (lavapipe) by the
 //! tests in `tests/`.
 //!
-//! The whole step ([`DeviceStep`]: both Jacobi solves with their stopping rules on the
-//! device, the forces, Δt, advection and containment, one submission and one read-back a
-//! step) and the backend that steps a world with it ([`GpuBackend`], which hands what the
+//! The whole step ([`DeviceStep`]: both solves, the Jacobi iteration and the deflated
+//! conjugate gradients, with their stopping rules on the device, the forces, Δt, advection
+//! and containment, one submission and one read-back a step) and the backend that steps a world with it ([`GpuBackend`], which hands what the
 //! device does not do yet to the CPU backend and says so).
 
 mod backend;
@@ -33,4 +33,6 @@ pub use grid::{GridLayout, GridPass, SortedGrid};
 pub use operators::Operators;
 pub use pairs::{DeviceParticles, ParticleInput};
 pub use reduce::{Fold, Reductions};
-pub use step::{Control, DeviceStep, Solve, StepConsts, StepInput, StepOutput};
+pub use step::{
+    CgSolve, CgState, Control, DensitySolve, DeviceStep, Solve, StepConsts, StepInput, StepOutput,
+};

@@ -547,6 +547,19 @@ impl World {
         let solver = &self.scene.solver;
         solver.method == Method::Dfsph && solver.pressure_solve == PressureSolve::ConjugateGradient
     }
+
+    /// How much of a linear field's gradient the SPH gradient recovers on the scene's lattice
+    /// ([`packing::gradient_consistency`]): the conjugate-gradient solve stores the physical
+    /// pressure `c·κ/Δt`, and its walls' ghosts continue the stiffness field's slope at rest,
+    /// g/c.
+    pub fn gradient_consistency(&self) -> f32 {
+        let (kernel, d, volume) = (&self.kernel, self.spacing, self.volume);
+        if self.scene.packing == Packing::Hexagonal {
+            packing::hexagonal_gradient_consistency(kernel, d, volume)
+        } else {
+            packing::square_gradient_consistency(kernel, d, volume)
+        }
+    }
 }
 
 /// What a backend outside this crate reads and writes (the CPU backend, inside it, reaches

@@ -112,6 +112,77 @@ struct StepConsts {
     // The longest step allowed after the bounds, s: a retry's shorter Δt, or the limit
     // a recent retry left (infinite otherwise).
     dt_cap: f32,
+    // The slope of the mirrored walls' hydrostatic ghost pressure, g/c (m/s²; zero for
+    // Akinci's walls): `dfsph::forces` (`GhostPressure`), added by `wall_forces.wgsl`.
+    ghost_slope: vec2<f32>,
+}
+
+// The conjugate-gradient density solve's constants (`dfsph::pressure::conjugate_gradient`).
+struct CgSolve {
+    min_iterations: u32,
+    max_iterations: u32,
+    // Start from the previous step's pressure (1) or from zero (0).
+    warm: u32,
+    // Fluid particles.
+    n: u32,
+    // The stopping rule: average and largest density error, percent of ρ0.
+    tolerance_pct: f32,
+    max_error_pct: f32,
+    // A step that makes the largest error exceed this multiple of the one before (plus
+    // `max_error_pct`) is taken back and ends the solve.
+    growth: f32,
+    // A particle with fewer neighbours (fluid and walls) carries no pressure.
+    min_neighbours: f32,
+    // The fastest existing compression is undone, over the spacing d, 1/s.
+    max_correction_rate: f32,
+    // Compression left uncorrected, relative to ρ0.
+    dead_band: f32,
+    // The lattice's gradient consistency c: the stored pressure is c·κ/Δt.
+    consistency: f32,
+    // The velocity rule: the density tolerance over the spacing (m; over Δt a speed), and
+    // the share of the gravity impulse g·Δt (m/s², 0 for none).
+    density_speed: f32,
+    gravity_impulse: f32,
+    // Workgroups of the 256-wide passes and of the 64-wide ones.
+    partials: u32,
+    groups: u32,
+    // The aggregates' width (m; 0: no deflation, `dfsph::pressure::deflation`).
+    coarse_cell: f32,
+}
+
+// The deflation's coarse space on the device (`coarse_*.wgsl`): square cells `cell` wide
+// from `origin` (the lower corner of the water that carries pressure), `cells` along x and
+// y, every cell an aggregate, numbered along the shorter side (`coarse_key`); `band` is
+// the half bandwidth of the coarse matrix E in that numbering.
+struct Coarse {
+    origin: vec2<f32>,
+    cell: f32,
+    count: u32,
+    cells: vec2<u32>,
+    band: u32,
     pad0: u32,
-    pad1: u32,
+}
+
+// The conjugate-gradient solve's state on the device (`cg_*.wgsl`).
+struct CgState {
+    // r·z, the step length along the search direction, the next direction's β, and the
+    // r·z below which the solve stops (round-off of the one it started from).
+    rz: f32,
+    alpha: f32,
+    beta: f32,
+    round_off: f32,
+    // α_k·(r_k·z_k) of the last four iterations: Δt times their squared velocity changes.
+    energy: vec4<f32>,
+    // Particles that carry pressure (at least 1), and the average and largest error, percent.
+    n_active: f32,
+    avg: f32,
+    max_err: f32,
+    // The solve goes on; iterations done; the last step is to be taken back; energies
+    // recorded.
+    running: u32,
+    iterations: u32,
+    take_back: u32,
+    energies: u32,
+    // Workgroups of the per-aggregate passes (0 without deflation).
+    coarse_groups: u32,
 }

@@ -1,6 +1,9 @@
 //! The step's shared blocks as the shaders read them (`shaders/step_prelude.wgsl`): the
 //! same fields in the same order, each 4 bytes, vectors on 8-byte boundaries.
 
+/// Particles per workgroup of the reductions and of the passes that feed them.
+pub(crate) const WIDE: u32 = 256;
+
 /// The step's state on the device (`struct Control`): Δt, the solve in progress and the
 /// solves' reports.
 #[repr(C)]
@@ -82,7 +85,60 @@ pub struct StepConsts {
     pub spacing: f32,
     pub partials: u32,
     pub dt_cap: f32,
-    pub pad: [u32; 2],
+    pub ghost_slope: [f32; 2],
+}
+
+/// The conjugate-gradient density solve's constants (`struct CgSolve`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct CgSolve {
+    pub min_iterations: u32,
+    pub max_iterations: u32,
+    pub warm: u32,
+    pub n: u32,
+    pub tolerance_pct: f32,
+    pub max_error_pct: f32,
+    pub growth: f32,
+    pub min_neighbours: f32,
+    pub max_correction_rate: f32,
+    pub dead_band: f32,
+    pub consistency: f32,
+    pub density_speed: f32,
+    pub gravity_impulse: f32,
+    pub partials: u32,
+    pub groups: u32,
+    pub coarse_cell: f32,
+}
+
+/// The deflation's coarse space on the device (`struct Coarse`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Coarse {
+    pub origin: [f32; 2],
+    pub cell: f32,
+    pub count: u32,
+    pub cells: [u32; 2],
+    pub band: u32,
+    pub pad: u32,
+}
+
+/// The conjugate-gradient solve's state on the device (`struct CgState`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct CgState {
+    pub rz: f32,
+    pub alpha: f32,
+    pub beta: f32,
+    pub round_off: f32,
+    pub energy: [f32; 4],
+    pub n_active: f32,
+    pub avg: f32,
+    pub max_err: f32,
+    pub running: u32,
+    pub iterations: u32,
+    pub take_back: u32,
+    pub energies: u32,
+    pub coarse_groups: u32,
 }
 
 #[cfg(test)]
@@ -96,5 +152,8 @@ mod tests {
         assert_eq!(std::mem::size_of::<Solve>(), 64);
         assert_eq!(std::mem::size_of::<Slot>(), 16);
         assert_eq!(std::mem::size_of::<StepConsts>(), 128);
+        assert_eq!(std::mem::size_of::<CgSolve>(), 64);
+        assert_eq!(std::mem::size_of::<CgState>(), 64);
+        assert_eq!(std::mem::size_of::<Coarse>(), 32);
     }
 }

@@ -2,15 +2,18 @@
 //! backend arranges it): the grid, densities and factors, the divergence solve, the CFL
 //! Δt, the non-pressure forces and predicted velocities, the density solve, advection and
 //! containment, recorded into one command buffer and submitted once. Nothing comes back to
-//! the host inside the step: each Jacobi solve's stopping rule runs on the device
-//! (`jacobi_control.wgsl`), which writes the next iteration's workgroup counts for an
-//! indirect dispatch (zero once the solve has ended), and Δt is computed there too
-//! (`time_step.wgsl`). The step's results are read back once, after it.
+//! the host inside the step: each solve's stopping rule runs on the device
+//! (`jacobi_control.wgsl`, `cg_control.wgsl`), which writes the next iteration's workgroup
+//! counts for an indirect dispatch (zero once the solve has ended), and Δt is computed there
+//! too (`time_step.wgsl`). The step's results are read back once, after it.
 //!
-//! The solves are the paper's Jacobi iterations with Akinci's walls, the CPU backend's
-//! `"pressure_solve": "jacobi"`, with its stopping rules, warm start and take-back of a
-//! growing iteration.
+//! The divergence solve is the paper's Jacobi iteration; the density solve is the scene's:
+//! the Jacobi iteration with Akinci's walls (`"pressure_solve": "jacobi"`), or the deflated
+//! conjugate gradients with the mirrored walls and their hydrostatic ghosts
+//! ([`conjugate_gradient`], every scene's default), each with the CPU backend's stopping
+//! rules, warm start and take-back of a step that made the error grow.
 
+mod conjugate_gradient;
 pub(crate) mod layout;
 
 use glam::Vec2;
@@ -18,8 +21,10 @@ use glam::Vec2;
 use crate::device::{Gpu, GpuError};
 use crate::grid::{groups, GridBuffers, GridLayout, GridPass};
 use crate::pairs::Params;
-use layout::Slot;
-pub use layout::{Control, Solve, StepConsts};
+pub(crate) use conjugate_gradient::{coarse_capacity, MAX_COARSE_ENTRIES};
+use conjugate_gradient::{CgBuffers, CgPass, StepBuffers};
+pub use layout::{CgSolve, CgState, Control, Solve, StepConsts};
+use layout::{Slot, WIDE};
 
 /// What one step starts from, as the host holds it.
 pub struct StepInput<'a> {
@@ -33,10 +38,11 @@ pub struct StepInput<'a> {
     pub wall_volumes: &'a [f32],
     pub wall_velocities: &'a [Vec2],
     /// The cubic spline's support h, m; the fluid particles' volume V, m²; the cap on the
-    /// DFSPH factor, m².
+    /// DFSPH factor, m²; the walls' gradient weight (`BoundaryModel::gradient_weight`).
     pub support: f32,
     pub volume: f32,
     pub max_factor: f32,
+    pub wall_weight: f32,
     /// The box the grid's cells of side h cover (points outside fall into its edge cells).
     pub bounds: (Vec2, Vec2),
     /// Forces, bounds on Δt, the tank.
@@ -44,9 +50,27 @@ pub struct StepInput<'a> {
     /// The two solves' constants; no divergence solve when `None`. Their counts and
     /// workgroups are filled in here.
     pub divergence: Option<Solve>,
-    pub density: Solve,
+    pub density: DensitySolve,
     /// The previous step's Δt, s (the divergence solve measures its error over it).
     pub last_dt: f32,
+}
+
+/// The density solve of a step, and its constants.
+#[derive(Clone, Copy, Debug)]
+pub enum DensitySolve {
+    /// The paper's Jacobi iteration (with Akinci's walls).
+    Jacobi(Solve),
+    /// Conjugate gradients (with the mirrored walls), without deflation.
+    ConjugateGradient(CgSolve),
+}
+
+impl DensitySolve {
+    fn max_iterations(&self) -> u32 {
+        match self {
+            Self::Jacobi(s) => s.max_iterations,
+            Self::ConjugateGradient(s) => s.max_iterations,
+        }
+    }
 }
 
 /// What one step leaves, read back.
@@ -85,7 +109,8 @@ pub struct DeviceStep {
     speed: wgpu::ComputePipeline,
     time_step: wgpu::ComputePipeline,
     forces: wgpu::ComputePipeline,
-    friction: wgpu::ComputePipeline,
+    wall_forces: wgpu::ComputePipeline,
+    cg: CgPass,
     predict: wgpu::ComputePipeline,
     unseen_fluid: wgpu::ComputePipeline,
     unseen_walls: wgpu::ComputePipeline,
@@ -93,9 +118,6 @@ pub struct DeviceStep {
     advect: wgpu::ComputePipeline,
     buffers: Option<Buffers>,
 }
-
-/// Per-particle workgroups of 64, and the reductions' of 256.
-const WIDE: u32 = 256;
 
 /// Bytes of one iteration's indirect dispatch sizes: three dispatches of three counts.
 const DISPATCH_SLOT: u64 = 9 * 4;
@@ -136,10 +158,19 @@ struct Buffers {
     partials: wgpu::Buffer,
     walls: wgpu::Buffer,
     wall_data: wgpu::Buffer,
+    /// The conjugate-gradient solve's.
+    cg: CgBuffers,
 }
 
 impl Buffers {
-    fn new(gpu: &Gpu, fluid: usize, walls: usize, cells: usize, max_iterations: u32) -> Self {
+    fn new(
+        gpu: &Gpu,
+        fluid: usize,
+        walls: usize,
+        cells: usize,
+        max_iterations: u32,
+        (aggregates, entries): (usize, usize),
+    ) -> Self {
         let uniform = |label: &str, size: usize| {
             gpu.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -200,6 +231,7 @@ impl Buffers {
             partials: gpu.zeroed::<[f32; 2]>("partials", fluid.div_ceil(WIDE as usize)),
             walls: gpu.zeroed::<[f32; 2]>("wall positions", walls),
             wall_data: gpu.zeroed::<[f32; 4]>("wall data", walls),
+            cg: CgBuffers::new(gpu, fluid, max_iterations, aggregates, entries),
         }
     }
 }
@@ -243,10 +275,8 @@ impl DeviceStep {
             speed: pair(include_str!("../shaders/speed.wgsl"), "speed"),
             time_step: alone(include_str!("../shaders/time_step.wgsl"), "time_step"),
             forces: pair(include_str!("../shaders/forces.wgsl"), "forces"),
-            friction: pair(
-                include_str!("../shaders/wall_friction.wgsl"),
-                "wall_friction",
-            ),
+            wall_forces: pair(include_str!("../shaders/wall_forces.wgsl"), "wall_forces"),
+            cg: CgPass::new(gpu),
             predict: pair(include_str!("../shaders/predict.wgsl"), "predict"),
             unseen_fluid: pair(include_str!("../shaders/unseen_fluid.wgsl"), "unseen_fluid"),
             unseen_walls: pair(include_str!("../shaders/unseen_walls.wgsl"), "unseen_walls"),
@@ -279,12 +309,26 @@ impl DeviceStep {
         let max_iterations = input
             .divergence
             .map_or(0, |s| s.max_iterations)
-            .max(input.density.max_iterations);
-        self.reserve(gpu, n, m, cells, max_iterations);
+            .max(input.density.max_iterations());
+        let coarse = match input.density {
+            DensitySolve::ConjugateGradient(s) if s.coarse_cell > 0.0 => {
+                let (aggregates, half_band) = coarse_capacity(input.position, s.coarse_cell);
+                (aggregates, aggregates * (half_band + 1))
+            }
+            _ => (1, 1),
+        };
+        self.reserve(gpu, n, m, cells, max_iterations, coarse);
         let b = self.buffers.as_ref().expect("reserved");
 
         // The inputs.
-        let params = Params::new(&layout, n, h, input.volume, 1.0, input.max_factor);
+        let params = Params::new(
+            &layout,
+            n,
+            h,
+            input.volume,
+            input.wall_weight,
+            input.max_factor,
+        );
         let q = &gpu.queue;
         q.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
         let groups64 = groups(n as u32, 64);
@@ -301,11 +345,21 @@ impl DeviceStep {
             ..s
         };
         let divergence = input.divergence.map(complete);
-        let density = complete(input.density);
+        let density = match input.density {
+            DensitySolve::Jacobi(s) => DensitySolve::Jacobi(complete(s)),
+            DensitySolve::ConjugateGradient(s) => DensitySolve::ConjugateGradient(CgSolve {
+                partials,
+                groups: groups64,
+                n: n as u32,
+                ..s
+            }),
+        };
         if let Some(s) = &divergence {
             q.write_buffer(&b.solves[0], 0, bytemuck::bytes_of(s));
         }
-        q.write_buffer(&b.solves[1], 0, bytemuck::bytes_of(&density));
+        if let DensitySolve::Jacobi(s) = &density {
+            q.write_buffer(&b.solves[1], 0, bytemuck::bytes_of(s));
+        }
         let control = Control {
             dt: input.last_dt,
             last_dt: input.last_dt,
@@ -403,11 +457,11 @@ impl DeviceStep {
                 ],
                 groups64,
             );
-            if input.consts.friction > 0.0 {
+            if input.consts.friction > 0.0 || input.consts.ghost_slope != [0.0; 2] {
                 dispatch(
                     gpu,
                     &mut pass,
-                    &self.friction,
+                    &self.wall_forces,
                     &[
                         &b.params,
                         &b.consts,
@@ -431,7 +485,24 @@ impl DeviceStep {
             );
         }
         // Algorithm 3: the density solve.
-        self.record_solve(gpu, &mut encoder, b, 1, &density, &b.pressure);
+        match &density {
+            DensitySolve::Jacobi(s) => self.record_solve(gpu, &mut encoder, b, 1, s, &b.pressure),
+            DensitySolve::ConjugateGradient(s) => {
+                let step = StepBuffers {
+                    params: &b.params,
+                    clock: &b.clock,
+                    control: &b.control,
+                    position: &b.position,
+                    sorted: &b.fluid_grid.sorted,
+                    starts: &b.fluid_grid.starts,
+                    densities: &b.densities,
+                    flux: &b.flux,
+                    velocity: &b.velocity,
+                    pressure: &b.pressure,
+                };
+                self.cg.record(gpu, &mut encoder, &step, &b.cg, s)
+            }
+        }
         // What the step would compress beyond the solve's prediction (the retries' check;
         // the accelerations are spent, their buffer holds the fluid's part).
         {
@@ -529,15 +600,25 @@ impl DeviceStep {
         })
     }
 
-    /// Buffers for `n` fluid particles, `m` walls, `cells` grid cells and solves of up to
-    /// `max_iterations` iterations.
-    fn reserve(&mut self, gpu: &Gpu, n: usize, m: usize, cells: usize, max_iterations: u32) {
+    /// Buffers for `n` fluid particles, `m` walls, `cells` grid cells, solves of up to
+    /// `max_iterations` iterations and a coarse space of `coarse` (aggregates, band entries).
+    fn reserve(
+        &mut self,
+        gpu: &Gpu,
+        n: usize,
+        m: usize,
+        cells: usize,
+        max_iterations: u32,
+        coarse: (usize, usize),
+    ) {
         let grow = |need: usize| need + need / 4;
         match &mut self.buffers {
             Some(b)
                 if b.fluid_capacity >= n
                     && b.wall_capacity >= m
-                    && b.max_iterations >= max_iterations =>
+                    && b.max_iterations >= max_iterations
+                    && b.cg.aggregates >= coarse.0
+                    && b.cg.entries >= coarse.1 =>
             {
                 b.fluid_grid.reserve(gpu, n, cells);
                 b.wall_grid.reserve(gpu, m, cells);
@@ -549,6 +630,7 @@ impl DeviceStep {
                     grow(m.max(1)),
                     grow(cells),
                     max_iterations,
+                    (grow(coarse.0), grow(coarse.1)),
                 ))
             }
         }

@@ -16,11 +16,9 @@ use web_time::Instant;
 use crate::backend::{Backend, StepStats};
 use crate::boundary::{self, BoundaryModel};
 use crate::neighbors::{Grid, NeighborLists};
-use crate::packing;
 use crate::particles::Scratch;
 use crate::pressure::{self, PressureSolver};
 use crate::rigid::{BodyVelocity, CoupledBodies};
-use crate::scene::Packing;
 use crate::settings::SolverSettings;
 use crate::solver::{self, PairCache};
 use crate::viscosity::Viscosity;
@@ -30,7 +28,7 @@ use crate::world::World;
 pub struct CpuBackend {
     /// Set from outside to end the pressure solves early ([`Backend::set_stop_flag`]).
     stop_flag: Option<Arc<AtomicBool>>,
-    /// [`packing::gradient_consistency`] of the scene's lattice: the pressure force of a field
+    /// [`crate::packing::gradient_consistency`] of the scene's lattice: the pressure force of a field
     /// p is that of c·p, so the conjugate-gradient solve stores c times its stiffness field as
     /// the physical pressure.
     gradient_consistency: f32,
@@ -82,11 +80,7 @@ impl CpuBackend {
     /// guess of the pressure, the neighbourhoods, densities and factors of the first step.
     pub fn new(world: &mut World) -> Self {
         let (scene, kernel, d, volume) = (&world.scene, world.kernel, world.spacing, world.volume);
-        let gradient_consistency = if scene.packing == Packing::Hexagonal {
-            packing::hexagonal_gradient_consistency(&kernel, d, volume)
-        } else {
-            packing::square_gradient_consistency(&kernel, d, volume)
-        };
+        let gradient_consistency = world.gradient_consistency();
         let settings = SolverSettings::from_scene(scene);
         let mut cpu = CpuBackend {
             stop_flag: None,

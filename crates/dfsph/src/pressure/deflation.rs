@@ -31,7 +31,7 @@ use glam::Vec2;
 const NONE: u32 = u32::MAX;
 /// The narrowest aggregate, in kernel supports: twice the reach of `A` (two supports), so
 /// that the colouring holds.
-pub(crate) const MIN_CELL_SUPPORTS: f32 = 4.0;
+pub const MIN_CELL_SUPPORTS: f32 = 4.0;
 /// Colours of the aggregates' checkerboard (2 × 2).
 pub(crate) const COLOURS: usize = 4;
 

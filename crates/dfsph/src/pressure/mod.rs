@@ -17,6 +17,7 @@ pub mod jacobi;
 mod solve;
 pub(crate) mod wcsph;
 
+pub use deflation::MIN_CELL_SUPPORTS;
 pub use hydrostatic::hydrostatic_pressure;
 pub(crate) use solve::PressureSolver;
 pub use solve::SolveReport;
