@@ -114,8 +114,8 @@ pub struct ViewArgs {
 
     /// Which backend steps the water: `cpu`; `gpu`, on a hardware adapter, else on a software
     /// one such as Mesa's lavapipe (right, but slow), an error where there is neither; or
-    /// `auto`, the GPU on a hardware adapter, else the CPU. The GPU backend does the Jacobi
-    /// solves (the built-in collapsing columns); it hands other scenes to the CPU and says why.
+    /// `auto`, the GPU on a hardware adapter, else the CPU. The GPU backend does both DFSPH
+    /// solves; it hands WCSPH, Wendland C2 and rigid bodies to the CPU and says why.
     #[arg(long, value_name = "BACKEND", value_enum, default_value_t = Backend::Cpu)]
     pub backend: Backend,
 }
@@ -157,8 +157,8 @@ pub struct StressArgs {
 
     /// Which backend steps the water: `cpu`; `gpu`, on a hardware adapter, else on a software
     /// one such as Mesa's lavapipe (right, but slow), an error where there is neither; or
-    /// `auto`, the GPU on a hardware adapter, else the CPU. The GPU backend does the Jacobi
-    /// solves (the built-in collapsing columns); it hands other scenes to the CPU and says why.
+    /// `auto`, the GPU on a hardware adapter, else the CPU. The GPU backend does both DFSPH
+    /// solves; it hands WCSPH, Wendland C2 and rigid bodies to the CPU and says why.
     #[arg(long, value_name = "BACKEND", value_enum, default_value_t = Backend::Cpu)]
     pub backend: Backend,
 }
@@ -221,8 +221,8 @@ pub struct RunArgs {
 
     /// Which backend steps the water: `cpu`; `gpu`, on a hardware adapter, else on a software
     /// one such as Mesa's lavapipe (right, but slow), an error where there is neither; or
-    /// `auto`, the GPU on a hardware adapter, else the CPU. The GPU backend does the Jacobi
-    /// solves (the built-in collapsing columns); it hands other scenes to the CPU and says why.
+    /// `auto`, the GPU on a hardware adapter, else the CPU. The GPU backend does both DFSPH
+    /// solves; it hands WCSPH, Wendland C2 and rigid bodies to the CPU and says why.
     #[arg(long, value_name = "BACKEND", value_enum, default_value_t = Backend::Cpu)]
     pub backend: Backend,
 
@@ -276,8 +276,8 @@ pub struct ValidateArgs {
 
     /// Which backend steps the water: `cpu`; `gpu`, on a hardware adapter, else on a software
     /// one such as Mesa's lavapipe (right, but slow), an error where there is neither; or
-    /// `auto`, the GPU on a hardware adapter, else the CPU. The GPU backend does the Jacobi
-    /// solves (the built-in collapsing columns); it hands other scenes to the CPU and says why.
+    /// `auto`, the GPU on a hardware adapter, else the CPU. The GPU backend does both DFSPH
+    /// solves; it hands WCSPH, Wendland C2 and rigid bodies to the CPU and says why.
     #[arg(long, value_name = "BACKEND", value_enum, default_value_t = Backend::Cpu)]
     pub backend: Backend,
 }
