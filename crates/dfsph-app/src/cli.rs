@@ -139,6 +139,12 @@ pub struct StressArgs {
     #[arg(long, value_name = "PCT", default_value = "5", value_parser = positive_percent)]
     pub density_bound: f64,
 
+    /// Drop no rigid bodies in (the scene's own stay): the water's actions alone, which keeps
+    /// a `--backend gpu` run on the device (it has no rigid bodies yet). The other actions of
+    /// a seed stay as they are.
+    #[arg(long)]
+    pub no_bodies: bool,
+
     /// Write the actions, with the step at which each applies, into FILE.
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,

@@ -64,6 +64,7 @@ pub fn command(args: StressArgs) -> Result<(), Failure> {
         seed: args.seed,
         steps: args.steps,
         density_bound_pct: args.density_bound,
+        bodies: !args.no_bodies,
     };
     let outcome = run(&plan, sim, recorder).map_err(Failure::runtime)?;
     println!("{}", terminal_safe(&outcome.summary(&scene.name, &plan)));
@@ -130,6 +131,9 @@ pub struct StressPlan {
     pub steps: u64,
     /// Largest allowed single-particle density error, percent.
     pub density_bound_pct: f64,
+    /// Drop rigid bodies in and drag them about (their actions draw from a stream of their
+    /// own: without them the others are the same).
+    pub bodies: bool,
 }
 
 /// The first broken invariant.
@@ -221,6 +225,7 @@ pub fn run<W: std::io::Write>(
     mut recorder: Option<Recorder<W>>,
 ) -> anyhow::Result<StressOutcome> {
     let mut gen = Generator::new(plan.seed, sim.scene());
+    gen.bodies = plan.bodies;
     let mut out = StressOutcome::default();
     // Fluid particles expected now: the epoch's start (initial, or after a reset) plus
     // poured minus erased since.
@@ -603,6 +608,8 @@ struct Generator {
     /// The bodies' actions draw from a stream of their own, so that they leave every other
     /// action of a seed as it was before stress dropped bodies in.
     body_rng: Rng,
+    /// Rigid bodies are dropped in ([`StressPlan::bodies`]).
+    bodies: bool,
     /// The first bodies are due: at the start and after a reset.
     bodies_due: bool,
     /// The bodies dropped in since the start or the last reset: where (centre, m) and how far
@@ -629,6 +636,7 @@ impl Generator {
             pointer: None,
             pour: None,
             body_rng: Rng(seed ^ 0xb0d1_e5b0_d1e5_0000),
+            bodies: true,
             bodies_due: true,
             dropped: Vec::new(),
             grab_until: None,
@@ -769,7 +777,9 @@ impl Generator {
     /// The actions applied after `step` steps. `scene` is the simulation's current scene
     /// (parameter changes start from its values; they change only through these actions).
     fn actions(&mut self, step: u64, scene: &Scene, out: &mut Vec<Action>) {
-        self.body_actions(step, out);
+        if self.bodies {
+            self.body_actions(step, out);
+        }
 
         // Shaking: hold left or right at full strength, switch or let go.
         if step >= self.shake_until && self.rng.chance(if self.shaking { 0.05 } else { 0.01 }) {
@@ -1073,6 +1083,7 @@ mod tests {
             seed: 3,
             steps: 40,
             density_bound_pct: 1000.0,
+            bodies: true,
         };
         let mut buf = Vec::new();
         let header = Header::new("test", rayon::current_num_threads(), &scene);
@@ -1095,5 +1106,49 @@ mod tests {
             "{line}"
         );
         assert!(!line.contains('\n'));
+    }
+
+    /// Without bodies a seed drops none in, and its other actions are those it takes with
+    /// them.
+    #[test]
+    fn no_bodies_drops_none_and_keeps_the_other_actions() {
+        let scene = coarse();
+        let recorded = |bodies: bool| {
+            let plan = StressPlan {
+                seed: 5,
+                steps: 60,
+                density_bound_pct: 1000.0,
+                bodies,
+            };
+            let mut buf = Vec::new();
+            let header = Header::new("test", rayon::current_num_threads(), &scene);
+            let rec = Recorder::new(&mut buf, &header).unwrap();
+            let out = run(&plan, Simulation::new(&scene).unwrap(), Some(rec)).unwrap();
+            let parsed =
+                dfsph::recording::Recording::parse(std::str::from_utf8(&buf).unwrap()).unwrap();
+            let is_body = |a: &Action| {
+                matches!(
+                    a,
+                    Action::AddBody { .. } | Action::Push { .. } | Action::ReleasePointer
+                )
+            };
+            let others: Vec<Action> = parsed
+                .entries
+                .iter()
+                .map(|e| e.action.clone())
+                .filter(|a| !is_body(a))
+                .collect();
+            let dropped = parsed
+                .entries
+                .iter()
+                .filter(|e| matches!(e.action, Action::AddBody { .. }))
+                .count();
+            (out.bodies, dropped, others)
+        };
+        let (with, dropped_with, others_with) = recorded(true);
+        let (without, dropped_without, others_without) = recorded(false);
+        assert!(with > 0 && dropped_with > 0, "the seed drops bodies in");
+        assert_eq!((without, dropped_without), (0, 0));
+        assert_eq!(others_with, others_without);
     }
 }
