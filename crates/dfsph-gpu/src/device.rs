@@ -48,7 +48,7 @@ fn list_or_none(found: &[String]) -> String {
 /// The shaders' library: each function, by name, and the file that defines it. A shader
 /// that calls one gets its file appended (and, in turn, what that file calls); each file
 /// names the bindings the calling shader must declare.
-const LIBRARY: [(&str, &str); 16] = [
+const LIBRARY: [(&str, &str); 19] = [
     ("fluid_slots", include_str!("shaders/fluid_slots.wgsl")),
     ("wall_slots", include_str!("shaders/wall_slots.wgsl")),
     ("velocity_sum", include_str!("shaders/rate_sum.wgsl")),
@@ -65,6 +65,9 @@ const LIBRARY: [(&str, &str); 16] = [
     ("coarse_colour_of", include_str!("shaders/coarse.wgsl")),
     ("coarse_target", include_str!("shaders/coarse.wgsl")),
     ("fine_cells", include_str!("shaders/fine_cells.wgsl")),
+    ("cg_fold", include_str!("shaders/cg_fold.wgsl")),
+    ("coarse_shape", include_str!("shaders/coarse.wgsl")),
+    ("band_at", include_str!("shaders/coarse.wgsl")),
 ];
 
 /// `source` with the library files of the functions it calls, until none is missing.

@@ -61,3 +61,21 @@ fn coarse_cell(key: u32) -> vec2<u32> {
     }
     return vec2<u32>(key / coarse.cells.y, key % coarse.cells.y);
 }
+
+// The coarse matrix's size (aggregates, half bandwidth) as every invocation of a
+// one-workgroup pass holds it, uniform (a loop over it may wait at barriers). Called in
+// uniform control flow; `t` is the local index.
+var<workgroup> coarse_shape_shared: vec2<u32>;
+
+fn coarse_shape(t: u32) -> vec2<u32> {
+    if t == 0u {
+        coarse_shape_shared = vec2<u32>(coarse.count, coarse.band);
+    }
+    return workgroupUniformLoad(&coarse_shape_shared);
+}
+
+// Where the band storage keeps E(r, c), r − band ≤ c ≤ r: row r holds columns
+// r − band ..= r.
+fn band_at(r: u32, c: u32, b: u32) -> u32 {
+    return r * (b + 1u) + c + b - r;
+}

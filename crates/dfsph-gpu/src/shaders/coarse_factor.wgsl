@@ -7,45 +7,37 @@
 @group(0) @binding(1) var<storage, read> diagonal: array<f32>;
 @group(0) @binding(2) var<storage, read_write> band: array<f32>;
 
-var<workgroup> shape: vec2<u32>;
-
-fn at(r: u32, c: u32, b: u32) -> u32 {
-    return r * (b + 1u) + c + b - r;
-}
 
 @compute @workgroup_size(256)
 fn coarse_factor(@builtin(local_invocation_id) lid: vec3<u32>) {
     let t = lid.x;
-    if t == 0u {
-        shape = vec2<u32>(coarse.count, coarse.band);
-    }
-    let s = workgroupUniformLoad(&shape);
-    let count = s.x;
-    let b = s.y;
+    let shape = coarse_shape(t);
+    let count = shape.x;
+    let b = shape.y;
     for (var c = 0u; c < count; c++) {
         if t == 0u {
-            let d = band[at(c, c, b)];
+            let d = band[band_at(c, c, b)];
             var pivot = 0.0;
             if d > 1.0e-10 * diagonal[c] {
                 pivot = sqrt(d);
             }
-            band[at(c, c, b)] = pivot;
+            band[band_at(c, c, b)] = pivot;
         }
         storageBarrier();
-        let pivot = band[at(c, c, b)];
+        let pivot = band[band_at(c, c, b)];
         let last = min(c + b, count - 1u);
         for (var r = c + 1u + t; r <= last; r += 256u) {
             var l = 0.0;
             if pivot > 0.0 {
-                l = band[at(r, c, b)] / pivot;
+                l = band[band_at(r, c, b)] / pivot;
             }
-            band[at(r, c, b)] = l;
+            band[band_at(r, c, b)] = l;
         }
         storageBarrier();
         for (var r = c + 1u; r <= last; r++) {
-            let lr = band[at(r, c, b)];
+            let lr = band[band_at(r, c, b)];
             for (var k = c + 1u + t; k <= r; k += 256u) {
-                band[at(r, k, b)] -= lr * band[at(k, c, b)];
+                band[band_at(r, k, b)] -= lr * band[band_at(k, c, b)];
             }
         }
         storageBarrier();

@@ -11,11 +11,7 @@
 @compute @workgroup_size(256)
 fn coarse_first(@builtin(local_invocation_id) lid: vec3<u32>) {
     let t = lid.x;
-    var acc = vec4<f32>(0.0);
-    for (var k = t; k < solve.partials; k += 256u) {
-        acc = cg_combine(acc, partials[k]);
-    }
-    let s = cg_tree_sum(t, acc);
+    let s = cg_fold(t);
     if t != 0u {
         return;
     }

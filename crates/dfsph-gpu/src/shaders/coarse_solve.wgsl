@@ -5,25 +5,17 @@
 @group(0) @binding(1) var<storage, read> band: array<f32>;
 @group(0) @binding(2) var<storage, read_write> y: array<f32>;
 
-var<workgroup> shape: vec2<u32>;
-
-fn at(r: u32, c: u32, b: u32) -> u32 {
-    return r * (b + 1u) + c + b - r;
-}
 
 @compute @workgroup_size(256)
 fn coarse_solve(@builtin(local_invocation_id) lid: vec3<u32>) {
     let t = lid.x;
-    if t == 0u {
-        shape = vec2<u32>(coarse.count, coarse.band);
-    }
-    let s = workgroupUniformLoad(&shape);
-    let count = s.x;
-    let b = s.y;
+    let shape = coarse_shape(t);
+    let count = shape.x;
+    let b = shape.y;
     // L x = y, column by column.
     for (var c = 0u; c < count; c++) {
         if t == 0u {
-            let pivot = band[at(c, c, b)];
+            let pivot = band[band_at(c, c, b)];
             var v = 0.0;
             if pivot > 0.0 {
                 v = y[c] / pivot;
@@ -34,7 +26,7 @@ fn coarse_solve(@builtin(local_invocation_id) lid: vec3<u32>) {
         let v = y[c];
         let last = min(c + b, count - 1u);
         for (var r = c + 1u + t; r <= last; r += 256u) {
-            y[r] -= band[at(r, c, b)] * v;
+            y[r] -= band[band_at(r, c, b)] * v;
         }
         storageBarrier();
     }
@@ -42,7 +34,7 @@ fn coarse_solve(@builtin(local_invocation_id) lid: vec3<u32>) {
     for (var k = 0u; k < count; k++) {
         let r = count - 1u - k;
         if t == 0u {
-            let pivot = band[at(r, r, b)];
+            let pivot = band[band_at(r, r, b)];
             var v = 0.0;
             if pivot > 0.0 {
                 v = y[r] / pivot;
@@ -56,7 +48,7 @@ fn coarse_solve(@builtin(local_invocation_id) lid: vec3<u32>) {
             first = r - b;
         }
         for (var c = first + t; c < r; c += 256u) {
-            y[c] -= band[at(r, c, b)] * v;
+            y[c] -= band[band_at(r, c, b)] * v;
         }
         storageBarrier();
     }
