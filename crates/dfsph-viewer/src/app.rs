@@ -621,7 +621,7 @@ impl ViewerApp {
                 let dir = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
                 self.shots
                     .push_back(ShotPurpose::File(export::timestamped_png(&dir)));
-                ctx.send_viewport_cmd(ViewportCommand::Screenshot);
+                ctx.send_viewport_cmd(ViewportCommand::Screenshot(Default::default()));
             }
             // The page cannot read its own WebGL canvas back: the picture is drawn by the
             // CPU rasteriser of `dfsph2d run --format png` and downloaded.
@@ -739,7 +739,7 @@ impl ViewerApp {
                     self.fail(e);
                 }
                 self.shots.push_back(ShotPurpose::Exit);
-                ctx.send_viewport_cmd(ViewportCommand::Screenshot);
+                ctx.send_viewport_cmd(ViewportCommand::Screenshot(Default::default()));
             }
             None => ctx.send_viewport_cmd(ViewportCommand::Close),
         }
@@ -851,7 +851,8 @@ impl eframe::App for ViewerApp {
         }
     }
 
-    fn update(&mut self, ctx: &egui::Context, _frame: &mut eframe::Frame) {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        let ctx = &ui.ctx().clone();
         let now = Instant::now();
         let frame_seconds = self.last_frame.map_or(0.0, |l| (now - l).as_secs_f64());
         self.fps.add(1.0, frame_seconds);
@@ -880,9 +881,9 @@ impl eframe::App for ViewerApp {
         // Side panel.
         let mut commands = Vec::new();
         let status = self.status.as_ref().map(|(s, _)| s.clone());
-        egui::SidePanel::right("controls")
-            .default_width(300.0)
-            .show(ctx, |ui| {
+        egui::Panel::right("controls")
+            .default_size(300.0)
+            .show(ui, |ui| {
                 commands = panel::side_panel(
                     ui,
                     PanelState {
@@ -907,23 +908,20 @@ impl eframe::App for ViewerApp {
                 );
             });
 
-        let plots_height = (0.2 * ctx.screen_rect().height()).clamp(70.0, 150.0);
-        egui::TopBottomPanel::bottom("plots")
-            .exact_height(plots_height)
-            .show(ctx, |ui| {
+        let plots_height = (0.2 * ctx.content_rect().height()).clamp(70.0, 150.0);
+        egui::Panel::bottom("plots")
+            .exact_size(plots_height)
+            .show(ui, |ui| {
                 ui.add_space(4.0);
                 self.history.plots(ui);
             });
 
         // The view: its rect, its response to the pointer, and a painter clipped to it.
         let (rect, response, painter) = egui::CentralPanel::default()
-            .frame(egui::Frame::none().fill(Color32::from_rgb(18, 20, 26)))
-            .show(ctx, |ui| {
+            .frame(egui::Frame::NONE.fill(Color32::from_rgb(18, 20, 26)))
+            .show(ui, |ui| {
                 // Clickable and draggable, but never focused: the keys belong to the viewer.
-                let sense = Sense {
-                    focusable: false,
-                    ..Sense::click_and_drag()
-                };
+                let sense = Sense::CLICK | Sense::DRAG;
                 let (rect, response) = ui.allocate_exact_size(ui.available_size(), sense);
                 (rect, response, ui.painter_at(rect))
             })
@@ -941,7 +939,7 @@ impl eframe::App for ViewerApp {
         let view = ViewInput {
             pointer,
             // The open-scene dialog's keys are its own.
-            keyboard: !ctx.wants_keyboard_input() && !self.opener.is_open(),
+            keyboard: !ctx.egui_wants_keyboard_input() && !self.opener.is_open(),
             over_body,
         };
         commands.extend(ctx.input(|i| self.mapper.update(i, view)));

@@ -156,8 +156,8 @@ fn input_frame(
         over_body: pointer.is_some_and(|p| app.sim.rigid_body_at(p).is_some()),
     };
     let mut commands = Vec::new();
-    let _ = ctx.run(raw, |ctx| {
-        commands = ctx.input(|i| app.mapper.update(i, view));
+    let _ = ctx.run_ui(raw, |ui| {
+        commands = ui.ctx().input(|i| app.mapper.update(i, view));
     });
     for cmd in commands.clone() {
         app.apply(ctx, cmd);

@@ -91,7 +91,7 @@ mod tests {
         assert_eq!(lines[1], "0.5,0.25,-1,0,1000,10");
         assert_eq!(lines.len(), 3);
 
-        let mut img = ColorImage::new([3, 2], Color32::BLACK);
+        let mut img = ColorImage::filled([3, 2], Color32::BLACK);
         img.pixels[4] = Color32::from_rgb(10, 200, 30);
         let png = timestamped_png(&dir);
         assert!(png

@@ -92,7 +92,7 @@ impl History {
         self.samples.is_empty()
     }
 
-    fn series(&self, f: impl Fn(&Sample) -> f64) -> PlotPoints {
+    fn series(&self, f: impl Fn(&Sample) -> f64) -> PlotPoints<'_> {
         self.samples.iter().map(|s| [s.time, f(s)]).collect()
     }
 
@@ -146,7 +146,10 @@ impl History {
             let range = self.value_range(|s| s.density_error_pct);
             plot("plot-density-error").show(&mut cols[0], |p| {
                 p.set_plot_bounds(bounds(range));
-                p.line(Line::new(self.series(|s| s.density_error_pct)).name("density error"));
+                p.line(Line::new(
+                    "density error",
+                    self.series(|s| s.density_error_pct),
+                ));
             });
             heading(&mut cols[1], "solver iterations per step");
             let range = value_range(
@@ -158,17 +161,23 @@ impl History {
                 .legend(Legend::default().position(egui_plot::Corner::LeftTop))
                 .show(&mut cols[1], |p| {
                     p.set_plot_bounds(bounds(range));
-                    p.line(Line::new(self.series(|s| s.density_iterations as f64)).name("density"));
-                    p.line(
-                        Line::new(self.series(|s| s.divergence_iterations as f64))
-                            .name("divergence"),
-                    );
+                    p.line(Line::new(
+                        "density",
+                        self.series(|s| s.density_iterations as f64),
+                    ));
+                    p.line(Line::new(
+                        "divergence",
+                        self.series(|s| s.divergence_iterations as f64),
+                    ));
                 });
             heading(&mut cols[2], "kinetic energy (J/m)");
             let range = self.value_range(|s| s.kinetic_energy);
             plot("plot-energy").show(&mut cols[2], |p| {
                 p.set_plot_bounds(bounds(range));
-                p.line(Line::new(self.series(|s| s.kinetic_energy)).name("kinetic energy"));
+                p.line(Line::new(
+                    "kinetic energy",
+                    self.series(|s| s.kinetic_energy),
+                ));
             });
         });
     }
@@ -252,9 +261,9 @@ pub struct HudInfo<'a> {
 pub fn hud(ui: &mut egui::Ui, info: &HudInfo) {
     let s = info.stats;
     let mono = |t: String| RichText::new(t).monospace().color(Color32::from_gray(235));
-    egui::Frame::none()
+    egui::Frame::NONE
         .fill(Color32::from_black_alpha(150))
-        .rounding(4.0)
+        .corner_radius(4.0)
         .inner_margin(6.0)
         .show(ui, |ui| {
             ui.label(

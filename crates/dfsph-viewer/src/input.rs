@@ -556,7 +556,8 @@ impl InputMapper {
         let m = input.modifiers;
         // About 10 % per wheel notch (egui reports 40-50 points per line). Shift turns the
         // wheel into a horizontal scroll in egui: take both directions.
-        let notches = (input.raw_scroll_delta.x + input.raw_scroll_delta.y) / 50.0;
+        let wheel = wheel_points(input);
+        let notches = (wheel.x + wheel.y) / 50.0;
         if m.shift {
             if notches != 0.0 {
                 let factor = 1.1f32.powf(notches);
@@ -566,7 +567,7 @@ impl InputMapper {
         } else {
             let mut zoom = input.zoom_delta();
             if !(m.ctrl || m.command || m.alt) {
-                zoom *= 1.1f32.powf(input.raw_scroll_delta.y / 50.0);
+                zoom *= 1.1f32.powf(wheel.y / 50.0);
             }
             if zoom != 1.0 && zoom.is_finite() {
                 out.push(Command::ZoomView {
@@ -685,6 +686,27 @@ impl InputMapper {
     }
 }
 
+/// The wheel's movement this frame in points, as the events reported it (lines at egui's
+/// line scroll speed, pages at the window's height): egui's smoothed scroll would spread a
+/// notch's zoom over several frames.
+fn wheel_points(input: &egui::InputState) -> egui::Vec2 {
+    let line = egui::InputOptions::default().line_scroll_speed;
+    let page = input.viewport_rect().height();
+    input
+        .events
+        .iter()
+        .fold(egui::Vec2::ZERO, |sum, event| match event {
+            egui::Event::MouseWheel { unit, delta, .. } => {
+                sum + match unit {
+                    egui::MouseWheelUnit::Point => *delta,
+                    egui::MouseWheelUnit::Line => line * *delta,
+                    egui::MouseWheelUnit::Page => page * *delta,
+                }
+            }
+            _ => sum,
+        })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -714,9 +736,10 @@ mod tests {
         }
 
         fn frame_with(&mut self, events: Vec<Event>, modifiers: Modifiers) -> Vec<Command> {
+            let mut all = vec![Event::ModifiersChanged(modifiers)];
+            all.extend(events);
             let raw = RawInput {
-                events,
-                modifiers,
+                events: all,
                 ..Default::default()
             };
             let mut out = Vec::new();
@@ -725,8 +748,8 @@ mod tests {
                 keyboard: true,
                 over_body: self.over_body,
             };
-            let _ = self.ctx.run(raw, |ctx| {
-                out = ctx.input(|i| self.mapper.update(i, view));
+            let _ = self.ctx.run_ui(raw, |ui| {
+                out = ui.ctx().input(|i| self.mapper.update(i, view));
             });
             out
         }
@@ -798,13 +821,13 @@ mod tests {
             ..Default::default()
         };
         let mut out = Vec::new();
-        let _ = h.ctx.run(raw, |ctx| {
+        let _ = h.ctx.run_ui(raw, |ui| {
             let view = ViewInput {
                 pointer: None,
                 keyboard: false,
                 over_body: false,
             };
-            out = ctx.input(|i| h.mapper.update(i, view));
+            out = ui.ctx().input(|i| h.mapper.update(i, view));
         });
         assert_eq!(out, vec![]);
     }
@@ -1017,6 +1040,7 @@ mod tests {
         Event::MouseWheel {
             unit: egui::MouseWheelUnit::Line,
             delta: egui::vec2(0.0, 1.0),
+            phase: egui::TouchPhase::Move,
             modifiers,
         }
     }

@@ -188,7 +188,7 @@ pub fn side_panel(ui: &mut egui::Ui, st: PanelState) -> Vec<Command> {
                     .on_hover_text("Restarts the scene with the new resolution");
                 // Apply once the slider is let go or the typed value is committed, not for
                 // every intermediate value.
-                let idle = !r.dragged() && !ui.ctx().wants_keyboard_input();
+                let idle = !r.dragged() && !ui.ctx().egui_wants_keyboard_input();
                 if idle && *st.radius_edit != scene.particle_radius {
                     out.push(Command::SetParticleRadius(*st.radius_edit));
                 }

@@ -77,7 +77,7 @@ pub fn world_bounds(sim: &Simulation) -> (Vec2, Vec2) {
 /// A white disc with a soft edge; tinted per particle through the vertex colour.
 pub fn disc_texture(ctx: &egui::Context) -> TextureHandle {
     const N: usize = 64;
-    let mut img = ColorImage::new([N, N], Color32::TRANSPARENT);
+    let mut img = ColorImage::filled([N, N], Color32::TRANSPARENT);
     let c = 0.5 * N as f32;
     for y in 0..N {
         for x in 0..N {
@@ -581,7 +581,12 @@ pub fn legend(
         mesh.add_colored_rect(r, coloring.color(0.5 * (t0 + t1)));
     }
     painter.add(Shape::mesh(mesh));
-    painter.rect_stroke(bar, 0.0, Stroke::new(1.0_f32, Color32::GRAY));
+    painter.rect_stroke(
+        bar,
+        0.0,
+        Stroke::new(1.0_f32, Color32::GRAY),
+        egui::StrokeKind::Middle,
+    );
     for (t, v) in [(0.0, lo), (0.5, 0.5 * (lo + hi)), (1.0, hi)] {
         if horizontal {
             let x = bar.left() + t * bar.width();

@@ -5,8 +5,6 @@
 //! runs exactly as written.
 
 use std::path::{Path, PathBuf};
-#[cfg(not(target_arch = "wasm32"))]
-use std::sync::Arc;
 
 use anyhow::{anyhow, Context as _};
 use dfsph::{Scene, Simulation};
@@ -153,19 +151,38 @@ impl Opened {
     }
 }
 
-/// The files dropped on the window this frame (drag and drop): by path on the desktop, by
-/// contents in the browser.
+/// The files dropped on the window this frame (drag and drop), by path.
+#[cfg(not(target_arch = "wasm32"))]
 pub fn dropped_scenes(input: &egui::InputState) -> Vec<Opened> {
     input
         .raw
         .dropped_files
         .iter()
-        .filter_map(|f| match (&f.path, &f.bytes) {
-            (Some(path), _) => Some(Opened::from_path(path)),
-            (None, Some(bytes)) => Some(Opened::from_bytes(&f.name, bytes)),
-            (None, None) => None,
-        })
+        .map(|f| Opened::from_path(f.path()))
         .collect()
+}
+
+/// The files dropped on the page (drag and drop), by contents: the browser reads them
+/// asynchronously, so a file dropped in one frame is opened in a later one.
+#[cfg(target_arch = "wasm32")]
+pub fn dropped_scenes(input: &egui::InputState) -> Vec<Opened> {
+    thread_local! {
+        static READ: std::cell::RefCell<Vec<(String, Vec<u8>)>> = Default::default();
+    }
+    for file in &input.raw.dropped_files {
+        let (file, name) = (file.clone(), file.path().display().to_string());
+        wasm_bindgen_futures::spawn_local(async move {
+            if let Ok(bytes) = file.bytes_async().await {
+                READ.with(|read| read.borrow_mut().push((name, bytes)));
+            }
+        });
+    }
+    READ.with(|read| {
+        read.borrow_mut()
+            .drain(..)
+            .map(|(name, bytes)| Opened::from_bytes(&name, &bytes))
+            .collect()
+    })
 }
 
 /// Save the state `scene` where the user finds it: `scene-<time>.json` in the current
@@ -203,13 +220,9 @@ pub struct SceneOpener {
 impl Default for SceneOpener {
     #[cfg(not(target_arch = "wasm32"))]
     fn default() -> Self {
-        let json: Arc<dyn Fn(&Path) -> bool + Send + Sync> = Arc::new(|p: &Path| {
-            p.extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("json"))
-        });
         let dialog = FileDialog::new()
             .title("Open scene")
-            .add_file_filter("scene files (.json)", json)
+            .add_file_filter_extensions("scene files (.json)", vec!["json", "JSON"])
             .default_file_filter("scene files (.json)")
             .initial_directory(std::env::current_dir().unwrap_or_else(|_| PathBuf::from(".")));
         Self { dialog }
@@ -227,19 +240,19 @@ impl Default for SceneOpener {
 impl SceneOpener {
     /// Show the dialog, in the directory the viewer was started in.
     pub fn open(&mut self) -> anyhow::Result<()> {
-        self.dialog.select_file();
+        self.dialog.pick_file();
         Ok(())
     }
 
     /// Whether the dialog is showing.
     pub fn is_open(&self) -> bool {
-        self.dialog.state() == DialogState::Open
+        *self.dialog.state() == DialogState::Open
     }
 
     /// Draw the dialog if it is open; the file the user picked, once.
     pub fn update(&mut self, ctx: &egui::Context) -> Option<Opened> {
         self.dialog.update(ctx);
-        self.dialog.take_selected().map(|p| Opened::from_path(&p))
+        self.dialog.take_picked().map(|p| Opened::from_path(&p))
     }
 }
 
@@ -362,45 +375,41 @@ mod tests {
         assert!(e.contains("`fluid`"), "{e}");
     }
 
+    /// A file dropped on the desktop window, as egui-winit hands it over.
+    #[derive(Debug)]
+    struct Dropped(PathBuf);
+
+    impl egui::DroppedFile for Dropped {
+        fn path(&self) -> &Path {
+            &self.0
+        }
+
+        fn bytes(&self) -> Result<Vec<u8>, String> {
+            std::fs::read(&self.0).map_err(|e| e.to_string())
+        }
+    }
+
     #[test]
-    fn dropped_files_are_read_by_path_or_by_contents() {
+    fn dropped_files_are_read_by_path() {
         let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("a.json");
-        write_scene(&path, &coarse()).unwrap();
+        let (good, bad) = (dir.path().join("a.json"), dir.path().join("c.json"));
+        write_scene(&good, &coarse()).unwrap();
+        // A file that is not a scene.
+        std::fs::write(&bad, br#"{"particle_radius": "big"}"#).unwrap();
         let ctx = egui::Context::default();
         let raw = egui::RawInput {
             dropped_files: vec![
-                // The desktop hands over a path,
-                egui::DroppedFile {
-                    path: Some(path.clone()),
-                    ..Default::default()
-                },
-                // the browser the bytes,
-                egui::DroppedFile {
-                    name: "b.json".into(),
-                    bytes: Some(coarse().to_json().into_bytes().into()),
-                    ..Default::default()
-                },
-                // which may not be a scene.
-                egui::DroppedFile {
-                    name: "c.json".into(),
-                    bytes: Some(br#"{"particle_radius": "big"}"#.to_vec().into()),
-                    ..Default::default()
-                },
+                std::sync::Arc::new(Dropped(good.clone())),
+                std::sync::Arc::new(Dropped(bad.clone())),
             ],
             ..Default::default()
         };
         let mut got = Vec::new();
-        let _ = ctx.run(raw, |ctx| got = ctx.input(dropped_scenes));
-        assert_eq!(got.len(), 3);
-        assert_eq!(got[0].name, path.display().to_string());
+        let _ = ctx.run_ui(raw, |ui| got = ui.ctx().input(dropped_scenes));
+        assert_eq!(got.len(), 2);
+        assert_eq!(got[0].name, good.display().to_string());
         assert_eq!(got[0].scene.as_ref().unwrap(), &coarse());
-        assert_eq!(got[1].name, "b.json");
-        assert_eq!(got[1].scene.as_ref().unwrap(), &coarse());
-        let e = format!("{:#}", got[2].scene.as_ref().unwrap_err());
-        assert!(
-            e.starts_with("c.json: ") && e.contains("particle_radius"),
-            "{e}"
-        );
+        let e = format!("{:#}", got[1].scene.as_ref().unwrap_err());
+        assert!(e.contains("c.json") && e.contains("particle_radius"), "{e}");
     }
 }

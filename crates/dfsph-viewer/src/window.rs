@@ -70,7 +70,6 @@ pub fn run(opts: ViewerOptions) -> anyhow::Result<()> {
             .with_inner_size([1280.0, 800.0])
             .with_min_inner_size([480.0, 320.0]),
         renderer: eframe::Renderer::Glow,
-        vsync: true,
         ..Default::default()
     };
     let failures: app::Failures = Rc::new(RefCell::new(Vec::new()));
