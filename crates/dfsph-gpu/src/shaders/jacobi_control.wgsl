@@ -30,9 +30,6 @@ fn unmet(avg: f32, max_err: f32, iterations: u32) -> bool {
 @compute @workgroup_size(256)
 fn jacobi_control(@builtin(local_invocation_id) lid: vec3<u32>) {
     let first = slot.mode == 1u;
-    if !first && control.running == 0u {
-        return;
-    }
     let t = lid.x;
     var acc = vec2<f32>(0.0);
     for (var k = t; k < solve.partials; k += 256u) {
@@ -49,7 +46,9 @@ fn jacobi_control(@builtin(local_invocation_id) lid: vec3<u32>) {
         }
         workgroupBarrier();
     }
-    if t != 0u {
+    // A solve that has ended dispatches no more control passes (their sizes are zero); the
+    // test stands after the barriers, which every invocation must reach (uniformity).
+    if t != 0u || (!first && control.running == 0u) {
         return;
     }
     // The error in percent: of ρ0 (density), or of the density's change over one step of
