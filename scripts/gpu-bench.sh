@@ -9,8 +9,8 @@
 #
 # On a machine whose only Vulkan device is a software one (Mesa's lavapipe) it says so and
 # stops: those times say nothing about a GPU. FORCE=1 runs it anyway (to check the script).
-# The benchmark's own settings (docs/BENCHMARK.md) use the conjugate-gradient solve, which
-# the GPU backend does not do yet: they would run on the CPU, so they are not in this table.
+# The benchmark's own settings (docs/BENCHMARK.md) run on the device too: `dfsph2d bench
+# --backend gpu` without `--realtime`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-${TMPDIR:-/tmp}/dfsph2d-gpu-bench}"

@@ -89,8 +89,8 @@ pub struct BenchArgs {
 
     /// Which backend steps dfsph2d's water: `cpu`, `gpu` (a hardware adapter, else a software
     /// one, whose times say nothing about a GPU's speed) or `auto` (a hardware adapter, else
-    /// the CPU). The benchmark's scene uses the conjugate-gradient solve, which the GPU
-    /// backend hands to the CPU; `--realtime`'s (the viewer's) runs on the GPU.
+    /// the CPU). Both the benchmark's settings and `--realtime`'s (the viewer's) run on the
+    /// GPU.
     #[arg(long, value_name = "BACKEND", value_enum, default_value_t = crate::backends::Backend::Cpu)]
     pub backend: crate::backends::Backend,
 }
