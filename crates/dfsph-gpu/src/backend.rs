@@ -91,6 +91,17 @@ impl GpuBackend {
         backend
     }
 
+    /// Record the solves' iterations as `recording` says ([`crate::Recording`]; adaptive
+    /// unless set).
+    pub fn set_recording(&mut self, recording: crate::Recording) {
+        self.step.set_recording(recording);
+    }
+
+    /// What the recording of the solves' iterations did since this backend was made.
+    pub fn recording_counts(&self) -> Arc<crate::RecordingCounts> {
+        self.step.recording_counts()
+    }
+
     /// What in `world`, stepped with `settings`, the device does not do yet, if anything.
     pub fn unsupported(world: &World, settings: &SolverSettings) -> Option<String> {
         let solver = &world.scene().solver;

@@ -33,6 +33,7 @@ pub use grid::{GridLayout, GridPass, SortedGrid};
 pub use operators::Operators;
 pub use pairs::{DeviceParticles, ParticleInput};
 pub use reduce::{Fold, Reductions};
+pub use step::recording::{Recording, RecordingCounts};
 pub use step::{
     CgSolve, CgState, Control, DensitySolve, DeviceStep, Solve, StepConsts, StepInput, StepOutput,
 };

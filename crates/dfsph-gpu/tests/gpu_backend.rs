@@ -2,11 +2,11 @@
 //! (Mesa's lavapipe). Without one the tests say so and do not run, except on CI, which
 //! installs it (`.ci/run`) and where they fail with the device's error.
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use dfsph::memory::MemoryLimits;
 use dfsph::{Action, Scene, Simulation, Vec2};
-use dfsph_gpu::{AdapterChoice, Gpu, GpuBackend};
+use dfsph_gpu::{AdapterChoice, Gpu, GpuBackend, Recording, RecordingCounts};
 
 fn gpu() -> Option<Arc<Gpu>> {
     match Gpu::new(AdapterChoice::Software) {
@@ -321,6 +321,67 @@ fn two_runs_on_the_device_are_bit_identical() {
     let first = run();
     assert!(first.2 > 0.03, "{} s", first.2);
     assert!(first == run(), "two runs differ");
+}
+
+/// `steps` steps of `scene` on the device recording the solves' iterations as `recording`
+/// says: the positions' and velocities' bits, and what the recording did (steps, reruns,
+/// recorded iterations, iterations taken).
+fn recorded_run(
+    gpu: &Arc<Gpu>,
+    scene: &Scene,
+    recording: Recording,
+    steps: usize,
+) -> (Vec<[u32; 4]>, (u64, u64, u64, u64)) {
+    let counts: Arc<Mutex<Option<Arc<RecordingCounts>>>> = Arc::default();
+    let (gpu, held) = (gpu.clone(), counts.clone());
+    let mut sim = Simulation::with_backend(
+        scene,
+        &MemoryLimits::of_this_process(None),
+        Arc::new(move |world| {
+            let mut backend = GpuBackend::new(gpu.clone(), world);
+            backend.set_recording(recording);
+            *held.lock().unwrap() = Some(backend.recording_counts());
+            Box::new(backend)
+        }),
+    )
+    .unwrap();
+    for _ in 0..steps {
+        sim.step();
+    }
+    assert!(sim.backend_description().starts_with("gpu: "));
+    let bits = sim
+        .positions()
+        .iter()
+        .zip(sim.velocities())
+        .map(|(x, v)| [x.x, x.y, v.x, v.y].map(f32::to_bits))
+        .collect();
+    let counts = counts.lock().unwrap().as_ref().unwrap().read();
+    (bits, counts)
+}
+
+#[test]
+fn recording_fewer_iterations_changes_no_bit() {
+    let Some(gpu) = gpu() else { return };
+    // The Jacobi solves of the dam break, and the default scene's deflated conjugate
+    // gradients, from their first steps (which take the most iterations).
+    for scene in [dam_break(), default_scene()] {
+        let (every, all) = recorded_run(&gpu, &scene, Recording::Every, 30);
+        let (adaptive, few) = recorded_run(&gpu, &scene, Recording::Adaptive, 30);
+        assert!(every == adaptive, "adaptive recording changed the results");
+        assert_eq!(all.3, few.3, "iterations taken");
+        assert!(
+            few.2 * 3 < all.2,
+            "recorded {} iterations against {} (every one)",
+            few.2,
+            all.2
+        );
+        // One iteration recorded a solve: every step that needs more is run again.
+        let (one, rerun) = recorded_run(&gpu, &scene, Recording::Fixed(1), 30);
+        assert!(every == one, "a rerun step differs from one recorded whole");
+        assert!(rerun.1 > 20, "{} of 30 steps run again", rerun.1);
+        assert_eq!(all.3, rerun.3, "iterations taken");
+        assert_eq!((all.1, few.1), (0, 0), "reruns");
+    }
 }
 
 /// The distances between the same particles (by id) of `a` and `b`, m, sorted.

@@ -30,9 +30,11 @@ struct Control {
     // The largest compression the step carries beyond the density solve's prediction
     // (relative to ρ0; `unseen_*.wgsl`).
     unseen: f32,
+    // Whether the divergence and the density solve would have gone on after the last
+    // iteration the host recorded (copied from the dispatch sizes after each solve).
+    div_unfinished: u32,
+    den_unfinished: u32,
     pad0: u32,
-    pad1: u32,
-    pad2: u32,
 }
 
 // One Jacobi solve's constants (TVCG 2017, Algorithm 2 or 3; `dfsph::pressure::jacobi`).

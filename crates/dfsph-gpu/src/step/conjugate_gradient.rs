@@ -19,7 +19,7 @@
 
 use glam::Vec2;
 
-use super::layout::{CgSolve, CgState, Coarse, Slot, WIDE};
+use super::layout::{CgSolve, CgState, Coarse, Control, Slot, WIDE};
 use crate::device::Gpu;
 
 /// The step's buffers the solve reads and writes.
@@ -156,7 +156,8 @@ impl CgBuffers {
                 size,
                 usage: wgpu::BufferUsages::STORAGE
                     | wgpu::BufferUsages::INDIRECT
-                    | wgpu::BufferUsages::COPY_DST,
+                    | wgpu::BufferUsages::COPY_DST
+                    | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             })
         };
@@ -251,9 +252,10 @@ impl CgPass {
 
     /// Record the density solve `solve` (its counts and workgroups filled in): the start
     /// (warm start, first residual; when deflating, the coarse space and the deflated first
-    /// step; the first test), `max_iterations` iterations dispatched with the sizes the test
-    /// before each wrote, the last direction pass (a take-back of the last iteration) and
-    /// the end, which stores p/ρ0 in `b.pressure`.
+    /// step; the first test), `recorded` iterations (at most the cap) dispatched with the
+    /// sizes the test before each wrote, the last direction pass (a take-back of the last
+    /// iteration) and the end, which stores p/ρ0 in `b.pressure`; then whether the solve
+    /// would have gone on is copied into the control block (`den_unfinished`).
     pub fn record(
         &self,
         gpu: &Gpu,
@@ -261,6 +263,7 @@ impl CgPass {
         b: &StepBuffers,
         cg: &CgBuffers,
         solve: &CgSolve,
+        recorded: u32,
     ) {
         gpu.queue
             .write_buffer(&cg.solve, 0, bytemuck::bytes_of(solve));
@@ -520,14 +523,14 @@ impl CgPass {
         run(&mut pass, &self.start, &start, 1);
         // Iteration k reads the slot k/2 of the buffer of its parity: first what the
         // direction of iteration k − 1 needs, then its own five passes.
-        for k in 0..=solve.max_iterations as usize {
+        for k in 0..=recorded as usize {
             let (sizes, at) = (&cg.dispatch[k % 2], (k / 2) as u64 * SLOT);
             if k > 0 {
                 indirect(&mut pass, &self.restrict, &restrict_aw, sizes, at);
                 indirect(&mut pass, &self.solve, &coarse_solve, sizes, at + 12);
                 indirect(&mut pass, &self.direction, &direction, sizes, at + 24);
             }
-            if k == solve.max_iterations as usize {
+            if k == recorded as usize {
                 break;
             }
             indirect(&mut pass, &self.push, &push, sizes, at + 36);
@@ -543,5 +546,15 @@ impl CgPass {
             );
         }
         run(&mut pass, &self.end, &end, groups64);
+        drop(pass);
+        // The push pass's workgroups of iteration `recorded`, which its test wrote.
+        let r = recorded as u64;
+        encoder.copy_buffer_to_buffer(
+            &cg.dispatch[(r % 2) as usize],
+            r / 2 * SLOT + 36,
+            b.control,
+            std::mem::offset_of!(Control, den_unfinished) as u64,
+            4,
+        );
     }
 }

@@ -26,7 +26,12 @@ pub struct Control {
     pub den_max: f32,
     pub cfl_dt: f32,
     pub unseen: f32,
-    pub pad: [u32; 3],
+    /// The first dispatch size of the divergence and the density solve's iteration after
+    /// the last one recorded: not zero when the solve would have gone on
+    /// (`recording::Recording`).
+    pub div_unfinished: u32,
+    pub den_unfinished: u32,
+    pub pad: u32,
 }
 
 /// One Jacobi solve's constants (`struct Solve`).

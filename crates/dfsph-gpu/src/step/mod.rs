@@ -15,6 +15,9 @@
 
 mod conjugate_gradient;
 pub(crate) mod layout;
+pub mod recording;
+
+use std::sync::Arc;
 
 use glam::Vec2;
 
@@ -25,6 +28,7 @@ pub(crate) use conjugate_gradient::{coarse_capacity, MAX_COARSE_ENTRIES};
 use conjugate_gradient::{CgBuffers, CgPass, StepBuffers};
 pub use layout::{CgSolve, CgState, Control, Solve, StepConsts};
 use layout::{Slot, WIDE};
+use recording::{budget, count, Recording, RecordingCounts};
 
 /// What one step starts from, as the host holds it.
 pub struct StepInput<'a> {
@@ -117,6 +121,10 @@ pub struct DeviceStep {
     unseen_fold: wgpu::ComputePipeline,
     advect: wgpu::ComputePipeline,
     buffers: Option<Buffers>,
+    recording: Recording,
+    /// The iterations the divergence and the density solve took in the last step.
+    last_iterations: [Option<u32>; 2],
+    counts: Arc<RecordingCounts>,
 }
 
 /// Bytes of one iteration's indirect dispatch sizes: three dispatches of three counts.
@@ -195,7 +203,8 @@ impl Buffers {
                 size: (max_iterations as u64 / 2 + 1) * DISPATCH_SLOT,
                 usage: wgpu::BufferUsages::STORAGE
                     | wgpu::BufferUsages::INDIRECT
-                    | wgpu::BufferUsages::COPY_DST,
+                    | wgpu::BufferUsages::COPY_DST
+                    | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             })
         };
@@ -283,12 +292,60 @@ impl DeviceStep {
             unseen_fold: alone(include_str!("../shaders/unseen_fold.wgsl"), "unseen_fold"),
             advect: pair(include_str!("../shaders/advect.wgsl"), "advect"),
             buffers: None,
+            recording: Recording::default(),
+            last_iterations: [None; 2],
+            counts: Arc::default(),
         }
     }
 
+    /// Record the solves' iterations as `recording` says from the next step on.
+    pub fn set_recording(&mut self, recording: Recording) {
+        self.recording = recording;
+    }
+
+    /// What the recording did since this step was made.
+    pub fn recording_counts(&self) -> Arc<RecordingCounts> {
+        self.counts.clone()
+    }
+
     /// Take one step from `input` on the device and read its results back. `input` must
-    /// hold at least one fluid particle.
+    /// hold at least one fluid particle. The solves' iterations are recorded as
+    /// [`Self::set_recording`] says; a step whose solve needed more is run again from
+    /// `input` with every iteration of that solve recorded ([`recording`]).
     pub fn run(&mut self, gpu: &Gpu, input: &StepInput) -> Result<StepOutput, GpuError> {
+        let caps = [
+            input.divergence.map_or(0, |s| s.max_iterations),
+            input.density.max_iterations(),
+        ];
+        let mut recorded = [0, 1].map(|k| budget(self.recording, caps[k], self.last_iterations[k]));
+        let counts = self.counts.clone();
+        // At most two runs: the second records every iteration, so nothing is unfinished.
+        let mut out = loop {
+            count(&counts.steps, 1);
+            count(&counts.recorded, (recorded[0] + recorded[1]) as u64);
+            let out = self.run_recorded(gpu, input, recorded)?;
+            let c = out.control;
+            if (c.div_unfinished == 0 && c.den_unfinished == 0) || recorded == caps {
+                break out;
+            }
+            count(&counts.reruns, 1);
+            recorded = caps;
+        };
+        let c = &mut out.control;
+        self.last_iterations = [Some(c.div_iterations), Some(c.den_iterations)];
+        count(&counts.taken, (c.div_iterations + c.den_iterations) as u64);
+        (c.div_unfinished, c.den_unfinished) = (0, 0);
+        Ok(out)
+    }
+
+    /// [`Self::run`] with `recorded` iterations of the divergence and the density solve
+    /// recorded.
+    fn run_recorded(
+        &mut self,
+        gpu: &Gpu,
+        input: &StepInput,
+        recorded: [u32; 2],
+    ) -> Result<StepOutput, GpuError> {
         let n = input.position.len();
         let m = input.walls.len();
         assert!(n > 0, "a step on the device needs fluid");
@@ -416,7 +473,7 @@ impl DeviceStep {
         }
         // Algorithm 2: the divergence solve, over the previous step's Δt.
         if let Some(solve) = &divergence {
-            self.record_solve(gpu, &mut encoder, b, 0, solve, &b.stiffness);
+            self.record_solve(gpu, &mut encoder, b, 0, solve, recorded[0], &b.stiffness);
         }
         // Line 7: Δt, from the velocities the divergence solve left.
         {
@@ -486,7 +543,9 @@ impl DeviceStep {
         }
         // Algorithm 3: the density solve.
         match &density {
-            DensitySolve::Jacobi(s) => self.record_solve(gpu, &mut encoder, b, 1, s, &b.pressure),
+            DensitySolve::Jacobi(s) => {
+                self.record_solve(gpu, &mut encoder, b, 1, s, recorded[1], &b.pressure)
+            }
             DensitySolve::ConjugateGradient(s) => {
                 let step = StepBuffers {
                     params: &b.params,
@@ -500,7 +559,8 @@ impl DeviceStep {
                     velocity: &b.velocity,
                     pressure: &b.pressure,
                 };
-                self.cg.record(gpu, &mut encoder, &step, &b.cg, s)
+                self.cg
+                    .record(gpu, &mut encoder, &step, &b.cg, s, recorded[1])
             }
         }
         // What the step would compress beyond the solve's prediction (the retries' check;
@@ -638,10 +698,12 @@ impl DeviceStep {
 
     /// Record one Jacobi solve (`which`: 0 divergence, 1 density) whose running total ends
     /// in `stored` (κᵛ, or p/ρ0) and whose warm start is read from it: the start, the warm
-    /// start, the first residual and control, then `max_iterations` iterations of apply,
-    /// residual and control, each dispatched with the workgroup counts the control before
-    /// it wrote (none once the solve has ended), then the take-back of a growing iteration
-    /// and the end.
+    /// start, the first residual and control, then `recorded` iterations (at most the cap)
+    /// of apply, residual and control, each dispatched with the workgroup counts the control
+    /// before it wrote (none once the solve has ended), then the take-back of a growing
+    /// iteration and the end; then whether it would have gone on is copied into the
+    /// control block (`div_unfinished` or `den_unfinished`).
+    #[allow(clippy::too_many_arguments)]
     fn record_solve(
         &self,
         gpu: &Gpu,
@@ -649,6 +711,7 @@ impl DeviceStep {
         b: &Buffers,
         which: usize,
         solve: &Solve,
+        recorded: u32,
         stored: &wgpu::Buffer,
     ) {
         let (fg, groups64, partials) = (&b.fluid_grid, solve.groups, solve.partials);
@@ -756,7 +819,7 @@ impl DeviceStep {
         run(&mut pass, &self.residual, &residuals[base], partials);
         let first = control(1, base, 0);
         run(&mut pass, &self.control, &first, 1);
-        for k in 0..solve.max_iterations as usize {
+        for k in 0..recorded as usize {
             let p = (base + k) % 2;
             let (sizes, at) = (&b.dispatch[k % 2], (k / 2) as u64 * DISPATCH_SLOT);
             pass.set_pipeline(&self.apply);
@@ -774,6 +837,21 @@ impl DeviceStep {
         }
         let end = gpu.bind(&self.end, &[&b.params, solve_buf, &b.clock, &b.jac, stored]);
         run(&mut pass, &self.end, &end, groups64);
+        drop(pass);
+        // The apply pass's workgroups of iteration `recorded`, which its control wrote.
+        let unfinished = if which == 0 {
+            std::mem::offset_of!(Control, div_unfinished)
+        } else {
+            std::mem::offset_of!(Control, den_unfinished)
+        };
+        let r = recorded as u64;
+        encoder.copy_buffer_to_buffer(
+            &b.dispatch[(r % 2) as usize],
+            r / 2 * DISPATCH_SLOT,
+            &b.control,
+            unfinished as u64,
+            4,
+        );
     }
 }
 
