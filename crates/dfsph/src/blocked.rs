@@ -33,6 +33,7 @@ use crate::kernel::Kernel;
 use crate::neighbors::NeighborLists;
 use crate::simd::{lane_kernel, SimdPath};
 
+mod formulas;
 mod lanes;
 mod layout;
 use lanes::{

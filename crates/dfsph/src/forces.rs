@@ -4,10 +4,11 @@
 //! are listed once, in [`non_pressure_accelerations`]; a new one is its file and a line there.
 //!
 //! The models' fluid pair sums run in one pass over the solver's SIMD blocks
-//! (`blocked::BlockedPairs::viscosity_sums`, whose per-pair formulas are in the lane
-//! kernels): the pass reads each pair's `W` and `∇W` once for XSPH and the Laplacian alike,
-//! and the models read its sums ([`model::Particle`]). A model with a fluid pair sum of its
-//! own adds it to that pass (its formula in `blocked/lanes.rs` and `blocked/avx512.rs`).
+//! (`blocked::BlockedPairs::viscosity_sums`, whose per-pair formulas are in
+//! `blocked/formulas.rs`): the pass reads each pair's `W` and `∇W` once for XSPH and the
+//! Laplacian alike, and the models read its sums ([`model::Particle`]). A model with a fluid
+//! pair sum of its own adds it to that pass (its formula once in `blocked/formulas.rs`, over
+//! the lane type both kinds of kernels use).
 
 use crate::par::prelude::*;
 use glam::Vec2;

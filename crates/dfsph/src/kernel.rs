@@ -13,6 +13,8 @@
 use glam::Vec2;
 use serde::{Deserialize, Serialize};
 
+use crate::simd::wide::Wide;
+
 /// Which smoothing kernel the solver uses, and with it the support in particle spacings
 /// (the scene's `solver.kernel`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -98,52 +100,10 @@ impl Kernel {
         self.w_of_q(r * self.inv_h)
     }
 
-    /// `W` at `q = r/h`.
+    /// `W` at `q = r/h` ([`Self::w_of_q_wide`] on one lane: the formula is written once).
     #[inline]
     fn w_of_q(&self, q: f32) -> f32 {
-        match self.shape {
-            KernelShape::CubicSpline => {
-                if q <= 0.5 {
-                    let q2 = q * q;
-                    self.k * (6.0 * q2 * q - 6.0 * q2 + 1.0)
-                } else if q < 1.0 {
-                    let a = 1.0 - q;
-                    2.0 * self.k * a * a * a
-                } else {
-                    0.0
-                }
-            }
-            KernelShape::WendlandC2 => {
-                if q < 1.0 {
-                    wendland_w(self.k, q)
-                } else {
-                    0.0
-                }
-            }
-        }
-    }
-
-    /// `dW/dq` for `0 ≤ q < 1`.
-    #[inline]
-    fn dw_dq(&self, q: f32) -> f32 {
-        match self.shape {
-            KernelShape::CubicSpline => {
-                if q <= 0.5 {
-                    self.l * q * (3.0 * q - 2.0)
-                } else {
-                    let a = 1.0 - q;
-                    -self.l * a * a
-                }
-            }
-            KernelShape::WendlandC2 => wendland_dw(self.l, q),
-        }
-    }
-
-    /// `(k, l, 1/h)`: the constants of [`Self::w`] and of `dW/dq`, for the SIMD density pass,
-    /// which evaluates the same expressions 16 pairs at a time.
-    #[inline]
-    pub(crate) fn constants(&self) -> (f32, f32, f32) {
-        (self.k, self.l, self.inv_h)
+        self.w_of_q_wide(q)
     }
 
     /// `W(0)`, the self-contribution to a particle's own sums.
@@ -155,135 +115,83 @@ impl Kernel {
     /// `∇_i W(x_i − x_j)` for the offset `r = x_i − x_j`, in 1/m³.
     #[inline]
     pub fn grad_w(&self, r: Vec2) -> Vec2 {
-        let rl = r.length();
-        let q = rl * self.inv_h;
-        if rl <= 1.0e-9 || q >= 1.0 {
-            return Vec2::ZERO;
-        }
-        // dW/dq · (1/h) · r/|r|
-        r * (self.dw_dq(q) * self.inv_h / rl)
+        self.w_and_grad(r).1
     }
 
-    /// `W` and `∇W` together, sharing the square root.
+    /// `W` and `∇W` together, sharing the square root ([`Self::w_and_grad_wide`] on one
+    /// lane).
     #[inline]
     pub fn w_and_grad(&self, r: Vec2) -> (f32, Vec2) {
-        // One square root for both: this is the per-pair work of the density pass.
-        let rl = r.length();
-        let q = rl * self.inv_h;
-        if rl <= 1.0e-9 || q >= 1.0 {
-            return (self.w_of_q(q), Vec2::ZERO);
-        }
-        (self.w_of_q(q), r * (self.dw_dq(q) * self.inv_h / rl))
+        let (w, gx, gy) = self.w_and_grad_wide(r.x, r.y);
+        (w, Vec2::new(gx, gy))
     }
 
-    /// The cubic spline's [`Self::w_of_q`] without branches: each piece evaluated, one
-    /// kept, with the same operations, so the same bits. The lane forms below are built on it.
+    /// `W` at `q = r/h` on the lanes of any [`Wide`] backend (16 lanes, or one `f32`):
+    /// every piece evaluated, one kept per lane, so the same bits on every backend.
     #[inline(always)]
-    fn cubic_w_selected(&self, q: f32) -> f32 {
-        let (q2, a) = (q * q, 1.0 - q);
-        let inner = self.k * (6.0 * q2 * q - 6.0 * q2 + 1.0);
-        let outer = 2.0 * self.k * a * a * a;
-        if q <= 0.5 {
-            inner
-        } else if q < 1.0 {
-            outer
-        } else {
-            0.0
-        }
+    pub(crate) fn w_of_q_wide<W: Wide>(&self, q: W) -> W {
+        let c = W::splat;
+        let inside = q.lt(c(1.0));
+        let a = c(1.0).sub(q);
+        let w = match self.shape {
+            // `k·(6q³ − 6q² + 1)` for q ≤ ½, `2k·(1 − q)³` beyond.
+            KernelShape::CubicSpline => {
+                let q2 = q.mul(q);
+                let six_q2 = c(6.0).mul(q2);
+                let inner = c(self.k).mul(six_q2.mul(q).sub(six_q2).add(c(1.0)));
+                let outer = c(2.0 * self.k).mul(a).mul(a).mul(a);
+                W::select(q.le(c(0.5)), inner, outer)
+            }
+            // Wendland C2's `k·(1 − q)⁴·(1 + 4q)` as `(k·(a²·a²))·(1 + 4q)`, a = 1 − q.
+            KernelShape::WendlandC2 => {
+                let a2 = a.mul(a);
+                c(self.k).mul(a2.mul(a2)).mul(c(1.0).add(c(4.0).mul(q)))
+            }
+        };
+        w.keep(inside)
     }
 
-    /// Wendland's [`Self::w_of_q`] without a branch around the arithmetic.
+    /// `dW/dq` on 16 lanes for q < 1 (beyond, a value the caller masks): the cubic
+    /// spline's `l·q·(3q − 2)` for q ≤ ½ and `−l·(1 − q)²` beyond, Wendland C2's
+    /// `(l·q)·(a·a·a)`.
     #[inline(always)]
-    fn wendland_w_selected(&self, q: f32) -> f32 {
-        let w = wendland_w(self.k, q);
-        if q < 1.0 {
-            w
-        } else {
-            0.0
-        }
-    }
-
-    /// [`Self::w`] for the 16 distances `r`, into `w`: the same bits, vectorisable.
-    #[inline(always)]
-    pub(crate) fn w_lanes(&self, r: &[f32; 16], w: &mut [f32; 16]) {
-        // The shape is chosen once per 16 lanes, so each loop vectorises on its own.
+    fn dw_of_q_wide<W: Wide>(&self, q: W) -> W {
+        let c = W::splat;
+        let a = c(1.0).sub(q);
         match self.shape {
             KernelShape::CubicSpline => {
-                for l in 0..16 {
-                    w[l] = self.cubic_w_selected(r[l] * self.inv_h);
-                }
+                let inner = c(self.l).mul(q).mul(c(3.0).mul(q).sub(c(2.0)));
+                let outer = c(-self.l).mul(a).mul(a);
+                W::select(q.le(c(0.5)), inner, outer)
             }
-            KernelShape::WendlandC2 => {
-                for l in 0..16 {
-                    w[l] = self.wendland_w_selected(r[l] * self.inv_h);
-                }
-            }
+            // `l·q·(1 − q)³` with `l = −20k`, as `(l·q)·(a·a·a)`.
+            KernelShape::WendlandC2 => c(self.l).mul(q).mul(a.mul(a).mul(a)),
         }
     }
 
-    /// [`Self::w_and_grad`] for the 16 offsets `(rx[l], ry[l])`: `W` into `w`, `∇W` into
-    /// `(gx, gy)`. No branches inside a lane (each lane evaluates every piece of the kernel
-    /// and keeps one), so the compiler can vectorise it; the same operations in the same
-    /// order as the scalar form, so the same bits.
+    /// [`Self::w`] at the 16 squared distances `r2`.
     #[inline(always)]
-    pub(crate) fn w_and_grad_lanes(
-        &self,
-        rx: &[f32; 16],
-        ry: &[f32; 16],
-        w: &mut [f32; 16],
-        gx: &mut [f32; 16],
-        gy: &mut [f32; 16],
-    ) {
-        match self.shape {
-            KernelShape::CubicSpline => {
-                for l in 0..16 {
-                    let (x, y) = (rx[l], ry[l]);
-                    // `Vec2::length`: √(x·x + y·y).
-                    let rl = (x * x + y * y).sqrt();
-                    let q = rl * self.inv_h;
-                    w[l] = self.cubic_w_selected(q);
-                    let a = 1.0 - q;
-                    let dw = if q <= 0.5 {
-                        self.l * q * (3.0 * q - 2.0)
-                    } else {
-                        -self.l * a * a
-                    };
-                    let scale = dw * self.inv_h / rl;
-                    let outside = rl <= 1.0e-9 || q >= 1.0;
-                    gx[l] = if outside { 0.0 } else { x * scale };
-                    gy[l] = if outside { 0.0 } else { y * scale };
-                }
-            }
-            KernelShape::WendlandC2 => {
-                for l in 0..16 {
-                    let (x, y) = (rx[l], ry[l]);
-                    let rl = (x * x + y * y).sqrt();
-                    let q = rl * self.inv_h;
-                    w[l] = self.wendland_w_selected(q);
-                    let scale = wendland_dw(self.l, q) * self.inv_h / rl;
-                    let outside = rl <= 1.0e-9 || q >= 1.0;
-                    gx[l] = if outside { 0.0 } else { x * scale };
-                    gy[l] = if outside { 0.0 } else { y * scale };
-                }
-            }
-        }
+    pub(crate) fn w_at_squared_wide<W: Wide>(&self, r2: W) -> W {
+        self.w_of_q_wide(r2.sqrt().mul(W::splat(self.inv_h)))
     }
-}
 
-/// Wendland C2's `W = k·(1 − q)⁴·(1 + 4q)` for `q < 1`, in the operation order the SIMD
-/// kernels repeat: `(k·(a²·a²))·(1 + 4q)`, `a = 1 − q`.
-#[inline(always)]
-fn wendland_w(k: f32, q: f32) -> f32 {
-    let a = 1.0 - q;
-    let a2 = a * a;
-    k * (a2 * a2) * (1.0 + 4.0 * q)
-}
-
-/// Wendland C2's `dW/dq = l·q·(1 − q)³` with `l = −20k`, as `(l·q)·(a²·a)`.
-#[inline(always)]
-fn wendland_dw(l: f32, q: f32) -> f32 {
-    let a = 1.0 - q;
-    l * q * (a * a * a)
+    /// `W` and `∇W` at the offsets `(rx, ry)`: +0 where there is no gradient (q ≥ 1 or
+    /// |r| ≤ 10⁻⁹). One square root for both: this is the per-pair work of the density pass.
+    #[inline(always)]
+    pub(crate) fn w_and_grad_wide<W: Wide>(&self, rx: W, ry: W) -> (W, W, W) {
+        let c = W::splat;
+        // `Vec2::length`: √(x·x + y·y).
+        let rl = rx.mul(rx).add(ry.mul(ry)).sqrt();
+        let q = rl.mul(c(self.inv_h));
+        // The scalar form's `rl <= 1e-9 || q >= 1` has no gradient; a NaN offset has one (NaN).
+        let has_grad = W::and(q.not_ge(c(1.0)), rl.not_le(c(1.0e-9)));
+        let scale = self.dw_of_q_wide(q).mul(c(self.inv_h)).div(rl);
+        (
+            self.w_of_q_wide(q),
+            rx.mul(scale).keep(has_grad),
+            ry.mul(scale).keep(has_grad),
+        )
+    }
 }
 
 #[cfg(test)]
@@ -388,10 +296,11 @@ mod tests {
             let chunk: &[Vec2; 16] = chunk.try_into().unwrap();
             let rx = std::array::from_fn(|l| chunk[l].x);
             let ry = std::array::from_fn(|l| chunk[l].y);
-            let (mut w, mut gx, mut gy) = ([0.0; 16], [0.0; 16], [0.0; 16]);
-            k.w_and_grad_lanes(&rx, &ry, &mut w, &mut gx, &mut gy);
-            let (lengths, mut w_of_r) = (chunk.map(|r| r.length()), [0.0; 16]);
-            k.w_lanes(&lengths, &mut w_of_r);
+            use crate::simd::wide::Lanes;
+            let (w, gx, gy) = k.w_and_grad_wide(Lanes::<false>(rx), Lanes::<false>(ry));
+            let (w, gx, gy) = (w.0, gx.0, gy.0);
+            let squares = chunk.map(|r| r.length_squared());
+            let w_of_r = k.w_at_squared_wide(Lanes::<false>(squares)).0;
             for (l, &r) in chunk.iter().enumerate() {
                 assert_eq!(w_of_r[l].to_bits(), k.w(r.length()).to_bits(), "W({r:?})");
                 let (ws, gs) = k.w_and_grad(r);

@@ -1,25 +1,29 @@
 //! The SIMD seam: which of three paths the pair loops take, chosen once per process.
 //!
-//! - [`SimdPath::Avx512`]: the hand-written AVX-512F kernels (`blocked::avx512`, the
-//!   neighbour search's candidate filter), on x86-64 CPUs that have AVX-512F.
-//! - [`SimdPath::Fma`]: the lane kernels, written once over 16 `f32` lanes (`[f32; 16]`, one
-//!   slot of a block), compiled with AVX2 and fused multiply-add enabled on x86-64 CPUs that
-//!   have both (`with_fma`), and for NEON on aarch64. The compiler turns each slot's
-//!   arithmetic into vector instructions. The pressure solve's multiply-adds are fused, as in
-//!   the AVX-512 kernels, and every other operation is the same in both and in the same
-//!   order, so the two paths give the same bits (tested where the CPU runs both).
+//! - [`SimdPath::Avx512`]: the AVX-512F kernels (`blocked::avx512`, the neighbour search's
+//!   candidate filter), on x86-64 CPUs that have AVX-512F.
+//! - [`SimdPath::Fma`]: the lane kernels (`blocked::lanes`), over 16 `f32` lanes (one slot of
+//!   a block), compiled with AVX2 and fused multiply-add enabled on x86-64 CPUs that have
+//!   both (`with_fma`), and for NEON on aarch64. The compiler turns each slot's arithmetic
+//!   into vector instructions. The pressure solve's multiply-adds are fused, as in the AVX-512
+//!   kernels, and every other operation is the same in both and in the same order, so the
+//!   two paths give the same bits (tested where the CPU runs both).
 //! - [`SimdPath::Portable`]: the same lane kernels with separate multiplies and adds, for
 //!   any target (wasm32 included; with `-C target-feature=+simd128` the compiler vectorises
 //!   them there too). Its pressure sums round differently from the other two paths.
 //!
-//! Why AVX-512 keeps its own kernels instead of the lane kernels compiled for it (a
-//! `#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]` trampoline, which gives the
-//! same bits): compiled so, the lane kernels took 1.75 times the hand-written kernels' wall
-//! time on the 20k benchmark (AMD Zen 5, docs/PERFORMANCE.md). The compiler reads a
-//! slot's neighbour values with 16 loads or a gather instruction; the hand-written kernels
-//! read them on AMD by permutes out of three windows of 32 particles loaded once per block
+//! The physics is written once: the kernel (`Kernel::w_and_grad_wide`) and every pair
+//! pass's arithmetic (`blocked::formulas`) are generic over the lane type [`wide::Wide`],
+//! whose backends are an array of 16 lanes (the lane kernels), one `f32` (a block's
+//! per-particle terms) and one AVX-512 register. What the two kinds of kernels keep apart is
+//! how they read a slot's 16 neighbour values: the lane kernels with 16 loads, which the
+//! compiler cannot do better; the AVX-512 kernels with a gather instruction, or, on AMD, by
+//! permutes out of three windows of 32 particles loaded once per block
 //! (`blocked::Gather::Windows`), and the neighbour search compresses the candidates that
-//! pass into its list in one instruction, which the compiler does not vectorise.
+//! pass into its list in one instruction. Compiled for AVX-512 instead, the lane kernels
+//! took 1.75 times the AVX-512 kernels' wall time on the 20k benchmark (AMD Zen 5,
+//! docs/PERFORMANCE.md); on an Intel Xeon with AVX-512 the `fma` path takes 1.34 times the
+//! `avx512` path's.
 //!
 //! Each path sums every particle's pairs in list order, so results are bit-identical across
 //! thread counts on any one path. A recording notes the path that made it
@@ -31,6 +35,8 @@
 
 use std::fmt;
 use std::sync::OnceLock;
+
+pub(crate) mod wide;
 
 /// The environment variable that forces a path.
 pub const ENV: &str = "DFSPH2D_SIMD";

@@ -1,12 +1,18 @@
-//! The AVX-512F kernels of the pair passes (the `avx512` path of [`crate::simd`]): the lane
-//! kernels' sums in the same order, on `__m512` vectors, reading neighbour values with gather
-//! instructions, plain loads or windows ([`super::Gather`]).
+//! The AVX-512F kernels of the pair passes (the `avx512` path of [`crate::simd`]): each
+//! reads a slot's neighbour values with gather instructions, plain loads or windows
+//! ([`super::Gather`]) into `__m512` vectors and hands them to the pass's formula
+//! (`formulas.rs`, over [`crate::simd::wide::Zmm`]), the lane kernels' sums in the same
+//! order.
 
+use super::formulas::{
+    advected_slot, pushed, residual, DensitySums, ResidualInputs, ViscositySums,
+};
 use super::layout::{
     BlockedPairs, FluidSums, Gather, ResidualTerms, SlotIndex, Windows, LANES, WINDOW,
 };
-use crate::kernel::{Kernel, KernelShape};
+use crate::kernel::Kernel;
 use crate::simd::avx512::{deinterleave, indices_from};
+use crate::simd::wide::{Wide, Zmm};
 use glam::Vec2;
 use std::arch::x86_64::*;
 
@@ -79,20 +85,15 @@ pub unsafe fn fill_fluid_block<I: SlotIndex>(
 ) -> FluidSums {
     assert!(pos.len() >= lists.n);
     let (count, first) = (_mm512_set1_epi32(lists.n as i32), lists.first as i32);
-    let shape = Shape::of(kernel);
-    let inv_h = shape.inv_h;
     let base = pos.as_ptr() as *const f32;
-    let (xi, yi) = (_mm512_loadu_ps(xi.as_ptr()), _mm512_loadu_ps(yi.as_ptr()));
+    let (xi, yi) = (
+        Zmm(_mm512_loadu_ps(xi.as_ptr())),
+        Zmm(_mm512_loadu_ps(yi.as_ptr())),
+    );
     let lens = _mm512_loadu_si512(lists.lens.as_ptr() as *const _);
     let pad = _mm512_loadu_si512(lists.pad.as_ptr() as *const _);
     let mut slot = [0u32; LANES];
-    let c = |v: f32| _mm512_set1_ps(v);
-    let (mut dens, mut sx, mut sy, mut sq) = (
-        c(start),
-        _mm512_setzero_ps(),
-        _mm512_setzero_ps(),
-        _mm512_setzero_ps(),
-    );
+    let mut sums = DensitySums::<Zmm>::new(start);
     for (s, kk) in (0..idx.len()).step_by(LANES).enumerate() {
         lists.clamped_slot(s, &mut slot);
         let clamped = _mm512_loadu_si512(slot.as_ptr() as *const _);
@@ -118,117 +119,17 @@ pub unsafe fn fill_fluid_block<I: SlotIndex>(
         }
         // The padding lanes read a real neighbour's position; their results are masked.
         let (xj, yj) = gather_xy(clamped, slot.as_ptr(), base, gather);
-        let (rx, ry) = (_mm512_sub_ps(xi, xj), _mm512_sub_ps(yi, yj));
-        let rl = _mm512_sqrt_ps(_mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry)));
-        let q = _mm512_mul_ps(rl, c(inv_h));
-        let inside = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, c(1.0));
-        let (w, d) = shape.w_and_dw(q, inside);
-        // ∇W = r·(dW/dq·(1/h)/|r|) where 1e-9 < |r| and q < 1, else 0.
-        let has_grad = inside & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(rl, c(1.0e-9)) & pair;
-        let scale = _mm512_maskz_div_ps(has_grad, _mm512_mul_ps(d, c(inv_h)), rl);
-        // Every lane without a gradient stores +0, as `Kernel::w_and_grad`'s
-        // `Vec2::ZERO` and the lane kernels do: padding (its r, taken from another
-        // particle, could carry a sign) and real pairs at q ≥ 1 or |r| ≤ 1e-9, where
-        // r·0 would be −0 for a negative component.
-        let (gxv, gyv) = (
-            _mm512_maskz_mul_ps(has_grad, rx, scale),
-            _mm512_maskz_mul_ps(has_grad, ry, scale),
-        );
-        _mm512_storeu_ps(gx.as_mut_ptr().add(kk), gxv);
-        _mm512_storeu_ps(gy.as_mut_ptr().add(kk), gyv);
-        // Sums over real pairs only (padding lanes keep their value).
-        dens = _mm512_mask_add_ps(dens, pair, dens, _mm512_mul_ps(c(volume), w));
-        let (vx, vy) = (_mm512_mul_ps(c(volume), gxv), _mm512_mul_ps(c(volume), gyv));
-        sx = _mm512_mask_add_ps(sx, pair, sx, vx);
-        sy = _mm512_mask_add_ps(sy, pair, sy, vy);
-        let len2 = _mm512_add_ps(_mm512_mul_ps(vx, vx), _mm512_mul_ps(vy, vy));
-        sq = _mm512_mask_add_ps(sq, pair, sq, len2);
+        let offset = (xi.sub(Zmm(xj)), yi.sub(Zmm(yj)));
+        let (gxv, gyv) = sums.add_slot(kernel, offset, pair, volume);
+        _mm512_storeu_ps(gx.as_mut_ptr().add(kk), gxv.0);
+        _mm512_storeu_ps(gy.as_mut_ptr().add(kk), gyv.0);
     }
     let mut out = FluidSums::default();
-    _mm512_storeu_ps(out.density.as_mut_ptr(), dens);
-    _mm512_storeu_ps(out.grad_x.as_mut_ptr(), sx);
-    _mm512_storeu_ps(out.grad_y.as_mut_ptr(), sy);
-    _mm512_storeu_ps(out.grad_sq.as_mut_ptr(), sq);
+    _mm512_storeu_ps(out.density.as_mut_ptr(), sums.density.0);
+    _mm512_storeu_ps(out.grad_x.as_mut_ptr(), sums.grad_x.0);
+    _mm512_storeu_ps(out.grad_y.as_mut_ptr(), sums.grad_y.0);
+    _mm512_storeu_ps(out.grad_sq.as_mut_ptr(), sums.grad_sq.0);
     out
-}
-
-/// The kernel's shape and constants, for the 16-lane forms of [`Kernel::w`] and its
-/// gradient. Each evaluates every piece and keeps one per lane, with separate multiplies and
-/// adds in the scalar code's order, so each lane rounds exactly as the scalar kernel does.
-#[derive(Clone, Copy)]
-struct Shape {
-    wendland: bool,
-    k: f32,
-    l: f32,
-    inv_h: f32,
-}
-
-impl Shape {
-    fn of(kernel: &Kernel) -> Self {
-        let (k, l, inv_h) = kernel.constants();
-        Shape {
-            wendland: kernel.shape() == KernelShape::WendlandC2,
-            k,
-            l,
-            inv_h,
-        }
-    }
-
-    /// `W` at `q` where `inside` (q < 1), 0 elsewhere: the cubic spline's `k·(6q³ − 6q² + 1)`
-    /// for q ≤ ½ and `2k·(1 − q)³` beyond, or Wendland C2's `(k·(a²·a²))·(1 + 4q)`, a = 1 − q.
-    #[inline]
-    #[target_feature(enable = "avx512f")]
-    fn w(&self, q: __m512, inside: __mmask16) -> __m512 {
-        let c = |v: f32| _mm512_set1_ps(v);
-        let a = _mm512_sub_ps(c(1.0), q);
-        if self.wendland {
-            let a2 = _mm512_mul_ps(a, a);
-            let w = _mm512_mul_ps(
-                _mm512_mul_ps(c(self.k), _mm512_mul_ps(a2, a2)),
-                _mm512_add_ps(c(1.0), _mm512_mul_ps(c(4.0), q)),
-            );
-            return _mm512_maskz_mov_ps(inside, w);
-        }
-        let inner = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(q, c(0.5));
-        let q2 = _mm512_mul_ps(q, q);
-        let six_q2 = _mm512_mul_ps(c(6.0), q2);
-        let w_in = _mm512_mul_ps(
-            c(self.k),
-            _mm512_add_ps(_mm512_sub_ps(_mm512_mul_ps(six_q2, q), six_q2), c(1.0)),
-        );
-        let w_out = _mm512_mul_ps(_mm512_mul_ps(_mm512_mul_ps(c(2.0 * self.k), a), a), a);
-        _mm512_maskz_mov_ps(inside, _mm512_mask_blend_ps(inner, w_out, w_in))
-    }
-
-    /// [`Self::w`] and `dW/dq`: the cubic spline's `l·q·(3q − 2)` for q ≤ ½ and
-    /// `−l·(1 − q)²` beyond, or Wendland C2's `(l·q)·(a·a·a)`.
-    #[inline]
-    #[target_feature(enable = "avx512f")]
-    fn w_and_dw(&self, q: __m512, inside: __mmask16) -> (__m512, __m512) {
-        let c = |v: f32| _mm512_set1_ps(v);
-        let w = self.w(q, inside);
-        let a = _mm512_sub_ps(c(1.0), q);
-        if self.wendland {
-            let a3 = _mm512_mul_ps(_mm512_mul_ps(a, a), a);
-            return (w, _mm512_mul_ps(_mm512_mul_ps(c(self.l), q), a3));
-        }
-        let inner = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(q, c(0.5));
-        let d_in = _mm512_mul_ps(
-            _mm512_mul_ps(c(self.l), q),
-            _mm512_sub_ps(_mm512_mul_ps(c(3.0), q), c(2.0)),
-        );
-        let d_out = _mm512_mul_ps(_mm512_mul_ps(c(-self.l), a), a);
-        (w, _mm512_mask_blend_ps(inner, d_out, d_in))
-    }
-
-    /// [`Self::w`] at the squared distances `r2`, as [`Kernel::w`] of `√r2`.
-    #[inline]
-    #[target_feature(enable = "avx512f")]
-    fn w_at(&self, r2: __m512) -> __m512 {
-        let q = _mm512_mul_ps(_mm512_sqrt_ps(r2), _mm512_set1_ps(self.inv_h));
-        let inside = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, _mm512_set1_ps(1.0));
-        self.w(q, inside)
-    }
 }
 
 /// [`super::BlockedPairs::advected_kernel_sums`], 16 pairs at a time.
@@ -252,31 +153,29 @@ pub unsafe fn advected_kernel_sums<I: SlotIndex>(
     gather: Gather,
     windows: Option<Windows>,
 ) -> [f32; LANES] {
-    let shape = Shape::of(kernel);
-    let c = |v: f32| _mm512_set1_ps(v);
-    let support2 = c(kernel.support() * kernel.support());
     let neighbours = NeighbourStates::new::<I>(first, pos, vel, gather, windows);
     let own = indices_from((first - I::origin(first)) as u32);
     let (xi_x, xi_y) = split_xy(xi);
-    let dtv = c(dt);
-    let mut sum = c(start);
+    let mut sum = Zmm::splat(start);
     for kk in (0..idx.len()).step_by(LANES) {
         let at = idx.as_ptr().add(kk);
         let j = load_indices(at);
-        // x_j + Δt·v_j, multiply then add, as the scalar `Vec2` expression.
         let ((px, py), (vx, vy)) = neighbours.slot(kk, j, at);
-        let xj = _mm512_add_ps(px, _mm512_mul_ps(dtv, vx));
-        let yj = _mm512_add_ps(py, _mm512_mul_ps(dtv, vy));
-        let (rx, ry) = (_mm512_sub_ps(xi_x, xj), _mm512_sub_ps(xi_y, yj));
-        let r2 = _mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry));
         // Padding repeats the particle itself, which is never its own neighbour.
-        let pair =
-            _mm512_cmpneq_epi32_mask(j, own) & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(r2, support2);
-        let w = shape.w_at(r2);
-        sum = _mm512_mask_add_ps(sum, pair, sum, _mm512_mul_ps(c(volume), w));
+        let other = _mm512_cmpneq_epi32_mask(j, own);
+        sum = advected_slot(
+            kernel,
+            sum,
+            (Zmm(xi_x), Zmm(xi_y)),
+            (Zmm(px), Zmm(py)),
+            (Zmm(vx), Zmm(vy)),
+            dt,
+            other,
+            volume,
+        );
     }
     let mut out = [0.0f32; LANES];
-    _mm512_storeu_ps(out.as_mut_ptr(), sum);
+    _mm512_storeu_ps(out.as_mut_ptr(), sum.0);
     out
 }
 
@@ -445,41 +344,31 @@ pub unsafe fn viscosity_sums<I: SlotIndex>(
     gather: Gather,
     windows: Option<Windows>,
 ) -> ([Vec2; LANES], [Vec2; LANES]) {
-    let shape = Shape::of(kernel);
-    let c = |v: f32| _mm512_set1_ps(v);
     let neighbours = NeighbourStates::new::<I>(first, pos, vel, gather, windows);
     let own = indices_from((first - I::origin(first)) as u32);
     let (xi_x, xi_y) = split_xy(xi);
     let (vi_x, vi_y) = split_xy(vi);
-    let (mut sx, mut sy) = (_mm512_setzero_ps(), _mm512_setzero_ps());
-    let (mut lx, mut ly) = (_mm512_setzero_ps(), _mm512_setzero_ps());
+    let mut sums = ViscositySums::<Zmm>::new();
     for kk in (0..idx.len()).step_by(LANES) {
         let at = idx.as_ptr().add(kk);
         let j = load_indices(at);
         let pair = _mm512_cmpneq_epi32_mask(j, own);
         let ((xj, yj), (vxj, vyj)) = neighbours.slot(kk, j, at);
-        let (rx, ry) = (_mm512_sub_ps(xi_x, xj), _mm512_sub_ps(xi_y, yj));
-        let (ux, uy) = (_mm512_sub_ps(vi_x, vxj), _mm512_sub_ps(vi_y, vyj));
-        let r2 = _mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry));
-        let w = shape.w_at(r2);
-        sx = _mm512_mask_sub_ps(sx, pair, sx, _mm512_mul_ps(ux, w));
-        sy = _mm512_mask_sub_ps(sy, pair, sy, _mm512_mul_ps(uy, w));
-        if laplacian {
-            let dot = _mm512_add_ps(_mm512_mul_ps(ux, rx), _mm512_mul_ps(uy, ry));
-            let ratio = _mm512_div_ps(dot, _mm512_add_ps(r2, c(eps2)));
-            let gxv = _mm512_loadu_ps(gx.as_ptr().add(kk));
-            let gyv = _mm512_loadu_ps(gy.as_ptr().add(kk));
-            lx = _mm512_mask_add_ps(lx, pair, lx, _mm512_mul_ps(gxv, ratio));
-            ly = _mm512_mask_add_ps(ly, pair, ly, _mm512_mul_ps(gyv, ratio));
-        }
+        let x = (Zmm(_mm512_sub_ps(xi_x, xj)), Zmm(_mm512_sub_ps(xi_y, yj)));
+        let u = (Zmm(_mm512_sub_ps(vi_x, vxj)), Zmm(_mm512_sub_ps(vi_y, vyj)));
+        let g = (
+            Zmm(_mm512_loadu_ps(gx.as_ptr().add(kk))),
+            Zmm(_mm512_loadu_ps(gy.as_ptr().add(kk))),
+        );
+        sums.add_slot(kernel, x, u, g, pair, eps2, laplacian);
     }
-    let store = |x: __m512, y: __m512| {
+    let store = |(x, y): (Zmm, Zmm)| {
         let (mut ax, mut ay) = ([0.0f32; LANES], [0.0f32; LANES]);
-        _mm512_storeu_ps(ax.as_mut_ptr(), x);
-        _mm512_storeu_ps(ay.as_mut_ptr(), y);
+        _mm512_storeu_ps(ax.as_mut_ptr(), x.0);
+        _mm512_storeu_ps(ay.as_mut_ptr(), y.0);
         std::array::from_fn(|l| Vec2::new(ax[l], ay[l]))
     };
-    (store(sx, sy), store(lx, ly))
+    (store(sums.xsph), store(sums.laplacian))
 }
 
 /// Load masks of the two halves of `lanes` (x, y) pairs read as a flat f32 array.
@@ -525,14 +414,6 @@ unsafe fn store_pairs(p: *mut Vec2, lanes: usize, x: __m512, y: __m512) {
         hi,
         _mm512_permutex2var_ps(x, second, y),
     );
-}
-
-/// `−x` by flipping the sign bit, exactly as scalar negation (also for zeros).
-#[inline]
-#[target_feature(enable = "avx512f")]
-fn negate(x: __m512) -> __m512 {
-    let sign = _mm512_set1_epi32(i32::MIN);
-    _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(x), sign))
 }
 
 /// [`super::BlockedPairs::residual_blocks`]: [`residual_block`] block by block, with
@@ -642,28 +523,28 @@ pub unsafe fn residual_block<I: SlotIndex>(
     let lanes = delta.len();
     let fluid = velocity_gradient_dot_lanes(idx, first, gx, gy, vel, gather, windows);
     let m = lane_mask(lanes);
-    let c = |v: f32| _mm512_set1_ps(v);
-    let load = |a: &[f32]| _mm512_maskz_loadu_ps(m, a.as_ptr().add(first));
-    let (vx, vy) = load_pairs(vel.as_ptr().add(first), lanes);
-    let (gsx, gsy) = load_pairs(terms.grad_sum.as_ptr().add(first), lanes);
-    // v_i·g_i as glam's `dot`: x·x' + y·y'.
-    let dot = _mm512_add_ps(_mm512_mul_ps(vx, gsx), _mm512_mul_ps(vy, gsy));
-    let r = _mm512_sub_ps(
-        _mm512_sub_ps(dot, _mm512_mul_ps(c(terms.volume), fluid)),
-        load(terms.wall_flux),
+    let load = |a: &[f32]| Zmm(_mm512_maskz_loadu_ps(m, a.as_ptr().add(first)));
+    let pairs = |p: &[Vec2]| {
+        let (x, y) = load_pairs(p.as_ptr().add(first), lanes);
+        (Zmm(x), Zmm(y))
+    };
+    let inputs = ResidualInputs {
+        vel: pairs(vel),
+        grad_sum: pairs(terms.grad_sum),
+        wall_flux: load(terms.wall_flux),
+        source: load(terms.source),
+        factor: load(terms.factor),
+    };
+    let (r, e, d) = residual(
+        Zmm(fluid),
+        &inputs,
+        terms.volume,
+        terms.rate_scale,
+        terms.increment_scale,
     );
-    _mm512_mask_storeu_ps(rate.as_mut_ptr(), m, r);
-    // `max` returns its second operand, 0, for a NaN, as `f32::max` does.
-    let e = _mm512_max_ps(
-        _mm512_add_ps(load(terms.source), _mm512_mul_ps(c(terms.rate_scale), r)),
-        _mm512_setzero_ps(),
-    );
-    let d = _mm512_mul_ps(
-        _mm512_mul_ps(e, load(terms.factor)),
-        c(terms.increment_scale),
-    );
-    _mm512_mask_storeu_ps(delta.as_mut_ptr(), m, d);
-    _mm512_storeu_ps(errors.as_mut_ptr(), _mm512_maskz_mov_ps(m, e));
+    _mm512_mask_storeu_ps(rate.as_mut_ptr(), m, r.0);
+    _mm512_mask_storeu_ps(delta.as_mut_ptr(), m, d.0);
+    _mm512_storeu_ps(errors.as_mut_ptr(), e.keep(m).0);
 }
 
 /// [`super::BlockedPairs::apply_block`]: the pair loop of [`weighted_gradient_sums`],
@@ -695,23 +576,15 @@ pub unsafe fn apply_block<I: SlotIndex>(
     let m = lane_mask(lanes);
     let ki = _mm512_maskz_loadu_ps(m, kappa.as_ptr().add(first));
     let (gsx, gsy) = load_pairs(grad_sum.as_ptr().add(first), lanes);
-    let vol = _mm512_set1_ps(volume);
-    // Δv = −(κ_i·g_i + V·s), then v + Δv.
-    let dvx = negate(_mm512_add_ps(
-        _mm512_mul_ps(ki, gsx),
-        _mm512_mul_ps(vol, sx),
-    ));
-    let dvy = negate(_mm512_add_ps(
-        _mm512_mul_ps(ki, gsy),
-        _mm512_mul_ps(vol, sy),
-    ));
     let (vx, vy) = load_pairs(vel.as_ptr(), lanes);
-    store_pairs(
-        vel.as_mut_ptr(),
-        lanes,
-        _mm512_add_ps(vx, dvx),
-        _mm512_add_ps(vy, dvy),
+    let (vx, vy) = pushed(
+        (Zmm(vx), Zmm(vy)),
+        Zmm(ki),
+        (Zmm(gsx), Zmm(gsy)),
+        (Zmm(sx), Zmm(sy)),
+        volume,
     );
+    store_pairs(vel.as_mut_ptr(), lanes, vx.0, vy.0);
     if let Some(t) = total {
         let sum = _mm512_add_ps(_mm512_maskz_loadu_ps(m, t.as_ptr()), ki);
         _mm512_mask_storeu_ps(t.as_mut_ptr(), m, sum);

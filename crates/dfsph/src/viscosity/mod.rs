@@ -5,9 +5,9 @@
 //! [`Viscosity::max_time_step`] combines their Δt bounds.
 //!
 //! The fluid pair sums of XSPH and the Laplacian run together, in one pass over the blocks
-//! (`blocked::BlockedPairs::viscosity_sums`, whose per-pair formulas are in the lane kernels
-//! `blocked/lanes.rs` and `blocked/avx512.rs`): the pass reads each pair's `W` and `∇W` once
-//! for both, and each model reads its own sum.
+//! (`blocked::BlockedPairs::viscosity_sums`, whose per-pair formulas are in
+//! `blocked/formulas.rs`, once for the lane and the AVX-512 kernels): the pass reads each
+//! pair's `W` and `∇W` once for both, and each model reads its own sum.
 
 use crate::scene::ViscosityParams;
 use crate::settings::SolverSettings;
