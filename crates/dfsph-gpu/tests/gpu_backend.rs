@@ -384,6 +384,30 @@ fn recording_fewer_iterations_changes_no_bit() {
     }
 }
 
+#[test]
+fn the_front_counts_neighbours_as_a_scan_of_every_pair_does() {
+    let Some(gpu) = gpu() else { return };
+    let mut sim = on_gpu(&gpu, &dam_break());
+    for _ in 0..3 {
+        for _ in 0..40 {
+            sim.step();
+        }
+        // The front by brute force: the largest x of a particle with at least three fluid
+        // neighbours strictly within the support.
+        let (x, h) = (sim.positions(), sim.world().kernel().support());
+        let lo = sim.world().tank_interior().0.x;
+        let front = (0..x.len())
+            .filter(|&i| {
+                // Itself and at least three others.
+                let near = x.iter().filter(|y| (x[i] - **y).length_squared() < h * h);
+                near.count() >= 4
+            })
+            .map(|i| (x[i].x - lo) as f64)
+            .fold(f64::MIN, f64::max);
+        assert_eq!(sim.front_position(3), Some(front));
+    }
+}
+
 /// The distances between the same particles (by id) of `a` and `b`, m, sorted.
 fn apart(a: &Simulation, b: &Simulation) -> Vec<f32> {
     let sorted = |s: &Simulation| {
