@@ -56,8 +56,9 @@ pub struct GpuBackend {
     stats: StepStats,
     totals: (u64, u64),
     stop_flag: Option<Arc<AtomicBool>>,
-    /// A grid over the fluid as it stood after a step, for [`Backend::close_fluid_count`],
-    /// built the first time it is asked after that step.
+    /// A grid over the fluid as it stood after a step, for [`Backend::close_fluid_count`]
+    /// and the output pressure's smoothing, built the first time it is asked after that
+    /// step ([`Self::with_near`]).
     near: Mutex<Option<NearGrid>>,
 }
 
@@ -66,7 +67,7 @@ pub struct GpuBackend {
 /// them).
 struct NearGrid {
     step: u64,
-    ends: [Vec2; 2],
+    ends: [Option<Vec2>; 2],
     grid: dfsph::neighbors::Grid,
     /// The particle at each sorted index.
     order: Vec<u32>,
@@ -115,6 +116,28 @@ impl GpuBackend {
     /// What the recording of the solves' iterations did since this backend was made.
     pub fn recording_counts(&self) -> Arc<crate::RecordingCounts> {
         self.step.recording_counts()
+    }
+
+    /// `f` of the grid over `world`'s fluid as it stands, built once a step (and again when
+    /// an action between steps moved the fluid's ends, or a reset).
+    fn with_near<R>(&self, world: &World, f: impl FnOnce(&NearGrid) -> R) -> R {
+        let x = world.positions();
+        let mut near = self.near.lock().unwrap_or_else(|e| e.into_inner());
+        let (step, ends) = (world.step_count(), [x.first().copied(), x.last().copied()]);
+        if near
+            .as_ref()
+            .is_none_or(|g| g.step != step || g.ends != ends)
+        {
+            let mut grid = dfsph::neighbors::Grid::new(world.kernel().support());
+            let order = grid.build(x).to_vec();
+            *near = Some(NearGrid {
+                step,
+                ends,
+                grid,
+                order,
+            });
+        }
+        f(near.as_ref().expect("just built"))
     }
 
     /// What in `world`, stepped with `settings`, the device does not do yet, if anything.
@@ -504,11 +527,10 @@ impl Backend for GpuBackend {
     fn output_pressures_over_rho0(&self, world: &World) -> Vec<f32> {
         match &self.cpu {
             Some((cpu, _)) => cpu.output_pressures_over_rho0(world),
-            None => {
-                let p = world.pressures_over_rho0();
-                let once = shepard(world, p);
-                shepard(world, &once)
-            }
+            None => self.with_near(world, |near| {
+                let once = shepard(world, near, world.pressures_over_rho0());
+                shepard(world, near, &once)
+            }),
         }
     }
 
@@ -558,45 +580,31 @@ impl Backend for GpuBackend {
                 }
                 // One grid a step, not a scan of every particle a call: the front of the
                 // fluid asks for every particle (1.28 million of them in the 1m benchmark).
-                let mut near = self.near.lock().unwrap_or_else(|e| e.into_inner());
-                let (step, ends) = (world.step_count(), [x[0], x[x.len() - 1]]);
-                if near
-                    .as_ref()
-                    .is_none_or(|g| g.step != step || g.ends != ends)
-                {
-                    let mut grid = dfsph::neighbors::Grid::new(world.kernel().support());
-                    let order = grid.build(x).to_vec();
-                    *near = Some(NearGrid {
-                        step,
-                        ends,
-                        grid,
-                        order,
+                self.with_near(world, |g| {
+                    let mut count = 0;
+                    g.grid.for_each_near(x[i], |j, _| {
+                        count += usize::from(g.order[j as usize] as usize != i);
                     });
-                }
-                let g = near.as_ref().expect("just built");
-                let mut count = 0;
-                g.grid.for_each_near(x[i], |j, _| {
-                    count += usize::from(g.order[j as usize] as usize != i);
-                });
-                Some(count)
+                    Some(count)
+                })
             }
         }
     }
 }
 
 /// `Σ_j W_ij f_j / Σ_j W_ij` at every fluid particle of `world`, j over its fluid neighbours
-/// and itself: the CPU backend's smoothing of the output pressure.
-fn shepard(world: &World, f: &[f32]) -> Vec<f32> {
+/// (found in `near`, the grid over them) and itself: the CPU backend's smoothing of the
+/// output pressure.
+fn shepard(world: &World, near: &NearGrid, f: &[f32]) -> Vec<f32> {
     let kernel = world.kernel();
-    let mut grid = dfsph::neighbors::Grid::new(kernel.support());
-    let x = world.positions();
-    let order = grid.build(x).to_vec();
-    x.iter()
+    world
+        .positions()
+        .iter()
         .map(|&p| {
             let (mut sum, mut weight) = (0.0, 0.0);
-            grid.for_each_near(p, |j, offset| {
+            near.grid.for_each_near(p, |j, offset| {
                 let w = kernel.w(offset.length());
-                sum += w * f[order[j as usize] as usize];
+                sum += w * f[near.order[j as usize] as usize];
                 weight += w;
             });
             sum / weight

@@ -311,7 +311,7 @@ impl DeviceStep {
     /// Take one step from `input` on the device and read its results back. `input` must
     /// hold at least one fluid particle. The solves' iterations are recorded as
     /// [`Self::set_recording`] says; a step whose solve needed more is run again from
-    /// `input` with every iteration of that solve recorded ([`recording`]).
+    /// `input` with every iteration of both solves recorded ([`recording`]).
     pub fn run(&mut self, gpu: &Gpu, input: &StepInput) -> Result<StepOutput, GpuError> {
         let caps = [
             input.divergence.map_or(0, |s| s.max_iterations),

@@ -12,7 +12,7 @@
 //! device says, after the step, whether a solve was still going when the recorded
 //! iterations ran out (`Control::div_unfinished`, `Control::den_unfinished`: the first
 //! dispatch size of the iteration after the last one recorded). Such a step is run again
-//! from the same input with every iteration of that solve recorded. The solves do the same
+//! from the same input with every iteration of both solves recorded. The solves do the same
 //! arithmetic in the same order either way, so the results are bit for bit those of
 //! [`Recording::Every`]; only the work the host and the device spend on empty dispatches
 //! changes.

@@ -7,8 +7,8 @@ use glam::Vec2;
 
 use crate::simd::SimdPath;
 
-/// Particles per block: one AVX-512 vector of f32.
-pub const LANES: usize = 16;
+/// Particles per block: one value of the lane type (one AVX-512 vector of f32).
+pub use crate::simd::wide::LANES;
 
 /// Neighbour indices and kernel gradients of every fluid–fluid pair, by block and slot.
 #[derive(Clone, Debug, Default)]

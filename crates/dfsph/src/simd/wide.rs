@@ -14,7 +14,7 @@
 #![allow(clippy::needless_range_loop)]
 
 /// Lanes in a [`Wide`] value: one slot of a block.
-pub(crate) const LANES: usize = 16;
+pub const LANES: usize = 16;
 
 /// 16 lanes of `f32` and the operations the pair passes' formulas use. Every method is
 /// `#[inline(always)]`, so that it compiles for the target features of the kernel that calls
